@@ -1,0 +1,141 @@
+"""Read and write meshes by file extension: OBJ by hand (see :mod:`.obj`), PLY and glTF/GLB through
+trimesh.
+
+PLY keeps one UV per vertex, so a mesh with UV seams is written to PLY without UVs (its vertex order
+is kept). A GLB written here stores each vertex's original index in the custom attribute ``_SOURCE_VERTEX``,
+so reading it back restores the exact vertex order and welds the copies made at UV seams. A glTF
+from elsewhere is read as it is laid out (one vertex per distinct position and UV).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import atomic_output
+from ..errors import FileFormatError, InputError
+from .mesh import Mesh
+from .obj import read_obj, write_obj
+
+__all__ = ["read_mesh", "write_mesh", "MESH_SUFFIXES"]
+
+_SOURCE_ATTRIBUTE = "_SOURCE_VERTEX"
+
+
+def _suffix(path: Path) -> str:
+    suffixes = [s.lower() for s in path.suffixes]
+    if len(suffixes) >= 2 and suffixes[-1] == ".gz":
+        return "".join(suffixes[-2:])
+    return path.suffix.lower()
+
+
+def _read_with_trimesh(path: Path) -> Mesh:
+    import trimesh
+
+    try:
+        loaded = trimesh.load(path, process=False, maintain_order=True)
+    except Exception as exc:  # trimesh raises many types for broken files
+        raise FileFormatError(path, f"cannot be read as a mesh ({type(exc).__name__}: {exc})") from None
+    if isinstance(loaded, trimesh.Scene):
+        geometries = list(loaded.dump()) if loaded.geometry else []
+        if not geometries:
+            raise FileFormatError(path, "holds no triangle mesh")
+        loaded = geometries[0] if len(geometries) == 1 else trimesh.util.concatenate(geometries)
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise FileFormatError(path, "holds no triangle mesh")
+    vertices = np.asarray(loaded.vertices, dtype=np.float64)
+    triangles = np.asarray(loaded.faces, dtype=np.int64)
+    uv = texture = None
+    visual = loaded.visual
+    has_uv = getattr(visual, "kind", None) == "texture" and getattr(visual, "uv", None) is not None
+    if has_uv and len(visual.uv) == len(vertices):
+        uv = np.asarray(visual.uv, dtype=np.float64)
+        image = getattr(getattr(visual, "material", None), "baseColorTexture", None) or getattr(
+            getattr(visual, "material", None), "image", None)
+        if image is not None:
+            texture = np.asarray(image.convert("RGB"))
+    source = loaded.vertex_attributes.get(_SOURCE_ATTRIBUTE) if hasattr(loaded, "vertex_attributes") else None
+    if source is not None and len(source) == len(vertices):
+        return _weld(path, vertices, triangles, uv, texture, np.asarray(source).ravel())
+    return Mesh(vertices, triangles, uv=uv, texture=texture)
+
+
+def _weld(path, vertices, triangles, uv, texture, source) -> Mesh:
+    """Undo :meth:`Mesh.split_at_seams` using the stored original index of each vertex."""
+    source = np.rint(source).astype(np.int64)
+    count = int(source.max()) + 1
+    if source.min() < 0 or len(np.unique(source)) != count:
+        raise FileFormatError(path, f"attribute {_SOURCE_ATTRIBUTE} is not a valid vertex map")
+    welded = np.zeros((count, 3))
+    welded[source] = vertices
+    return Mesh(welded, source[triangles], uv=uv, uv_triangles=triangles if uv is not None else None,
+                texture=texture)
+
+
+def _write_with_trimesh(path: Path, mesh: Mesh, file_type: str) -> None:
+    import trimesh
+
+    split = mesh.split_at_seams()
+    if file_type == "ply" and len(split.vertices) != len(mesh.vertices):
+        # PLY holds one UV per vertex; rather than reorder vertices at seams, keep the order and drop UVs.
+        split = type(mesh)(mesh.vertices, mesh.triangles).split_at_seams()
+    visual = None
+    if split.uv is not None:
+        from PIL import Image
+
+        image = Image.fromarray(mesh.texture) if mesh.texture is not None else None
+        material = trimesh.visual.material.PBRMaterial(baseColorTexture=image, baseColorFactor=[255, 255, 255, 255])
+        visual = trimesh.visual.TextureVisuals(uv=split.uv, material=material)
+    tm = trimesh.Trimesh(split.vertices, split.triangles, visual=visual, process=False)
+    if file_type == "glb":
+        tm.vertex_attributes[_SOURCE_ATTRIBUTE] = split.source_vertex.astype(np.float32)
+    data = tm.export(file_type=file_type)
+    with atomic_output(path) as tmp:
+        tmp.write_bytes(data if isinstance(data, bytes) else data.encode())
+
+
+_READERS = {
+    ".obj": read_obj,
+    ".obj.gz": read_obj,
+    ".ply": _read_with_trimesh,
+    ".glb": _read_with_trimesh,
+    ".gltf": _read_with_trimesh,
+}
+_WRITERS = {
+    ".obj": write_obj,
+    ".ply": lambda path, mesh: _write_with_trimesh(path, mesh, "ply"),
+    ".glb": lambda path, mesh: _write_with_trimesh(path, mesh, "glb"),
+}
+MESH_SUFFIXES = tuple(sorted(_READERS))
+
+
+def read_mesh(path) -> Mesh:
+    """Read a mesh file (.obj, .obj.gz, .ply, .glb, .gltf), chosen by its extension.
+
+    Raises
+    ------
+    InputError
+        The file is missing, or its extension is not a mesh format.
+    FileFormatError
+        The file does not follow its format (message names the file, and the line for OBJ).
+    """
+    path = Path(path)
+    reader = _READERS.get(_suffix(path))
+    if reader is None:
+        raise InputError(f"{path}: unknown mesh format {_suffix(path)!r}; use one of {', '.join(MESH_SUFFIXES)}")
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    if path.stat().st_size == 0:
+        raise FileFormatError(path, "is empty")
+    return reader(path)
+
+
+def write_mesh(path, mesh: Mesh) -> None:
+    """Write ``mesh`` to .obj, .ply or .glb, chosen by the extension; complete or not at all."""
+    path = Path(path)
+    writer = _WRITERS.get(_suffix(path))
+    if writer is None:
+        choices = ", ".join(sorted(_WRITERS))
+        raise InputError(f"{path}: cannot write mesh format {_suffix(path)!r}; use one of {choices}")
+    writer(path, mesh)

@@ -1,0 +1,202 @@
+"""Surface-aware interpolation: values spread along the mesh instead of through space.
+
+Two points on either side of a closed mouth are a millimetre apart in space but a mouth-width
+apart along the skin, because the lips meet at an opening in the mesh. An RBF on Euclidean distance
+lets the upper lip drag the lower one. Two ways to respect the surface are here:
+
+* :class:`BiharmonicInterpolation`: the smoothest field on the surface (least integrated squared
+  Laplacian, with the cotangent Laplacian) that takes the given values at the control vertices,
+  optionally fading with distance from them; nothing crosses an opening of the mesh. This is the
+  one faceanim uses.
+* :class:`SurfaceRbf`: the RBF kernels on geodesic distance (shortest paths along edges). Measured
+  on ICT-FaceKit it is far worse than either: kernels of geodesic distance are not positive definite,
+  and the fitted weights blow up between centres (``benchmarks/transfer_ict.py``). It stays for the
+  comparison.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse import csgraph
+from scipy.sparse.linalg import splu
+
+from ..validation import as_index_array
+from .mesh import Mesh
+from .rbf import apply_operator, rbf_operator_from_distances
+
+__all__ = ["edge_graph", "geodesic_distances", "cotangent_laplacian", "BiharmonicInterpolation", "SurfaceRbf"]
+
+
+def edge_graph(mesh: Mesh) -> sparse.csr_matrix:
+    """Symmetric ``(V, V)`` sparse matrix of edge lengths, cached on the mesh."""
+    graph = mesh.__dict__.get("_edge_graph")
+    if graph is None:
+        e = mesh.edges
+        length = np.linalg.norm(mesh.vertices[e[:, 0]] - mesh.vertices[e[:, 1]], axis=1)
+        V = len(mesh.vertices)
+        graph = sparse.coo_matrix((np.r_[length, length], (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
+                                  shape=(V, V)).tocsr()
+        mesh.__dict__["_edge_graph"] = graph
+    return graph
+
+
+def geodesic_distances(mesh: Mesh, sources) -> np.ndarray:
+    """``(S, V)`` shortest-path distances along edges from each source vertex to every vertex.
+
+    Vertices not connected to a source get ``inf``.
+
+    >>> m = Mesh([[0., 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]])
+    >>> float(geodesic_distances(m, [1])[0, 3])  # along an edge or across the diagonal: both 2
+    2.0
+    """
+    sources = as_index_array(sources, "sources", upper=len(mesh.vertices))
+    return csgraph.dijkstra(edge_graph(mesh), directed=False, indices=sources)
+
+
+class SurfaceRbf:
+    """An RBF over a mesh's vertices that measures distance along the surface.
+
+    Fitted to a set of control vertices; maps values at them (displacements ``(K, 3)`` or frames
+    ``(T, K, 3)``) to values at every vertex.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    control_vertices : (K,) int64
+        Distinct vertex ids.
+    kernel, smoothing
+        As for :class:`~faceanim.geometry.rbf.RbfWarp`. The affine term of ``thin_plate``,
+        ``cubic`` and ``linear`` uses the vertices' positions, so rigid and affine motion are still
+        reproduced exactly.
+
+    Raises
+    ------
+    ValueError
+        Repeated control vertices, or a vertex that no control vertex can reach along the surface.
+    """
+
+    def __init__(self, mesh: Mesh, control_vertices, *, kernel: str = "thin_plate", smoothing: float | None = None):
+        ids = _distinct_ids(mesh, control_vertices)
+        distances = geodesic_distances(mesh, ids)  # (K, V)
+        unreachable = ~np.isfinite(distances).any(axis=0)
+        if unreachable.any():
+            raise ValueError(f"{int(unreachable.sum())} vertices (first: {np.flatnonzero(unreachable)[:5].tolist()}) "
+                             "are not connected to any control vertex along the surface")
+        # A vertex in a component without some control vertex is infinitely far from it; the kernel
+        # then must not see inf, so such distances are capped at the largest finite one.
+        finite_max = distances[np.isfinite(distances)].max()
+        distances = np.where(np.isfinite(distances), distances, 2 * finite_max)
+        self.control_vertices = ids
+        self.operator = rbf_operator_from_distances(
+            distances[:, ids], distances.T, kernel=kernel, smoothing=smoothing,
+            centre_positions=mesh.vertices[ids], point_positions=mesh.vertices)
+
+    def __call__(self, values) -> np.ndarray:
+        """Values at every vertex: ``(V, C)`` or ``(T, V, C)``."""
+        return apply_operator(self.operator, values)
+
+
+def cotangent_laplacian(mesh: Mesh):
+    """The cotangent Laplacian ``L (V, V)`` (positive semi-definite) and lumped mass ``(V,)``.
+
+    ``L`` weights each edge by half the sum of the cotangents of the angles facing it; the mass of
+    a vertex is a third of the area of its triangles. Cotangents are clamped to [-1e3, 1e3] so a
+    needle triangle cannot dominate.
+    """
+    v, t = mesh.vertices, mesh.triangles
+    V = len(v)
+    rows, cols, weights = [], [], []
+    for k in range(3):
+        i, j, o = t[:, (k + 1) % 3], t[:, (k + 2) % 3], t[:, k]  # edge (i, j) faces the corner o
+        u, w = v[i] - v[o], v[j] - v[o]
+        cross = np.linalg.norm(np.cross(u, w), axis=1)
+        cot = np.clip(np.einsum("ij,ij->i", u, w) / np.maximum(cross, 1e-300), -1e3, 1e3)
+        rows += [i, j]
+        cols += [j, i]
+        weights += [0.5 * cot, 0.5 * cot]
+    W = sparse.coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(V, V)).tocsr()
+    L = sparse.diags(np.asarray(W.sum(axis=1)).ravel()) - W
+    mass = np.zeros(V)
+    np.add.at(mass, t.ravel(), np.repeat(mesh.face_areas / 3.0, 3))
+    return L.tocsr(), mass
+
+
+class BiharmonicInterpolation:
+    """The smoothest surface field through given values at control vertices, fading with distance.
+
+    Minimises ``f' Q f`` over the free vertices with ``f`` fixed at the controls, where
+    ``Q = (k^2 M + L) M^-1 (k^2 M + L)``, ``L`` is the cotangent Laplacian, ``M`` the lumped mass and
+    ``k = 1 / falloff_length``. With ``falloff=0`` (``k = 0``) this is biharmonic interpolation: the
+    least integrated squared Laplacian. With ``k > 0`` it is the posterior mean of a Gaussian process
+    on the surface with a Matern covariance (the SPDE view of Lindgren, Rue and Lindstroem 2011): the
+    field is still exact at the controls, but relaxes to zero beyond a few ``falloff_length`` from
+    them instead of extrapolating their slope. Facial motion is local (a raised brow does not move
+    the scalp), and on ICT-FaceKit this prior halves the error of sparse transfer
+    (``benchmarks/transfer_ict.py``). Nothing spreads across openings in the mesh (mouth, eyes).
+
+    Parameters
+    ----------
+    mesh : Mesh
+    control_vertices : (K,) int64
+        Distinct vertex ids; every connected part of the mesh needs at least one.
+    falloff : float
+        Falloff length as a fraction of the controls' RMS distance from their centroid (so it does
+        not depend on units); 0 for plain biharmonic interpolation.
+
+    The ``(V, K)`` operator is computed once with a sparse factorisation; ``__call__`` maps values
+    ``(K, C)`` or ``(T, K, C)`` to ``(V, C)`` or ``(T, V, C)``.
+
+    Examples
+    --------
+    >>> m = Mesh([[0., 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]])
+    >>> BiharmonicInterpolation(m, [0, 1, 2], falloff=0)(np.array([[1.], [1.], [1.]]))[3]
+    array([1.])
+    """
+
+    def __init__(self, mesh: Mesh, control_vertices, *, falloff: float = 0.25):
+        ids = _distinct_ids(mesh, control_vertices)
+        falloff = float(falloff)
+        if not np.isfinite(falloff) or falloff < 0:
+            raise ValueError(f"falloff must be a finite number >= 0, got {falloff}")
+        V = len(mesh.vertices)
+        unconstrained = np.setdiff1d(np.arange(V), np.unique(mesh.triangles))
+        if len(unconstrained):
+            raise ValueError(f"{len(unconstrained)} vertices (first: {unconstrained[:5].tolist()}) belong to no "
+                             "triangle; remove them before interpolating on the surface")
+        _, part = csgraph.connected_components(edge_graph(mesh), directed=False)
+        uncovered = np.setdiff1d(np.unique(part), part[ids])
+        if len(uncovered):
+            first = np.flatnonzero(part == uncovered[0])[:5].tolist()
+            raise ValueError(f"{len(uncovered)} connected parts of the mesh hold no control vertex "
+                             f"(vertices {first}, ...); give each part a control vertex or remove it")
+        L, mass = cotangent_laplacian(mesh)
+        mass = np.maximum(mass, mass[mass > 0].min())
+        centres = mesh.vertices[ids]
+        radius = np.sqrt(((centres - centres.mean(axis=0)) ** 2).sum(axis=1).mean())
+        k2 = 0.0 if falloff == 0 or radius == 0 else 1.0 / (falloff * radius) ** 2
+        A = (k2 * sparse.diags(mass) + L).tocsr()
+        Q = (A.T @ sparse.diags(1.0 / mass) @ A).tocsc()
+        free = np.ones(V, dtype=bool)
+        free[ids] = False
+        free_ids = np.flatnonzero(free)
+        operator = np.zeros((V, len(ids)))
+        operator[ids, np.arange(len(ids))] = 1.0
+        if len(free_ids):
+            Qff = Q[free_ids][:, free_ids].tocsc()
+            Qfc = Q[free_ids][:, ids].toarray()
+            operator[free_ids] = -splu(Qff).solve(Qfc)
+        self.control_vertices = ids
+        self.falloff = falloff
+        self.operator = operator
+
+    def __call__(self, values) -> np.ndarray:
+        return apply_operator(self.operator, values)
+
+
+def _distinct_ids(mesh: Mesh, control_vertices) -> np.ndarray:
+    ids = as_index_array(control_vertices, "control_vertices", upper=len(mesh.vertices))
+    unique, counts = np.unique(ids, return_counts=True)
+    if (counts > 1).any():
+        raise ValueError(f"control_vertices must be distinct; repeated: {unique[counts > 1][:10].tolist()}")
+    return ids

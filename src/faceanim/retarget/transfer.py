@@ -1,0 +1,193 @@
+"""Expression transfer: move a target face the way a source face moved.
+
+Two routes, for two situations:
+
+* **sparse** (``method="rbf"``): only the displacements of a few control points are known (what a
+  tracker gives). They are interpolated over the target along its surface (biharmonic
+  interpolation with a falloff, :class:`~faceanim.geometry.surface.BiharmonicInterpolation`), so
+  motion does not leak across the mouth or the eyelids; the thesis' Euclidean RBF is an option.
+* **dense** (``method="clone"``): the whole source mesh moved (a model, a synthesised expression).
+  The source is warped onto the target through the control pairs, each target vertex is projected
+  onto the warped source, and the source's displacement at the landing point is carried across
+  (expression cloning, Noh & Neumann 2001; the seed's simple-face-to-real-face projection). The
+  projection only accepts source triangles that face the same way as the target vertex, so the
+  underside of the upper lip cannot land on the lower lip it touches.
+
+Both routes are linear in the source motion: the correspondence is computed once and every frame
+costs one (sparse) matrix product.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse import csgraph
+
+from ..geometry.mesh import Mesh
+from ..geometry.project import project_points
+from ..geometry.rbf import RbfWarp, apply_operator
+from ..geometry.surface import BiharmonicInterpolation, SurfaceRbf
+from ..validation import as_array, as_index_array
+
+__all__ = ["ControlPairs", "SparseTransfer", "DenseTransfer", "transfer_expression", "METHODS", "METRICS"]
+
+METHODS = ("rbf", "clone")
+METRICS = ("surface", "euclidean", "geodesic")
+
+
+@dataclass(frozen=True, eq=False)
+class ControlPairs:
+    """Corresponding vertex ids on a source and a target mesh (``(K,)`` int64 each)."""
+
+    source: np.ndarray
+    target: np.ndarray
+
+    @classmethod
+    def checked(cls, source_ids, target_ids, source_count: int, target_count: int) -> ControlPairs:
+        """Validate ids against the meshes' vertex counts; duplicates are named."""
+        src = as_index_array(source_ids, "source ids", upper=source_count)
+        dst = as_index_array(target_ids, "target ids", upper=target_count)
+        if len(src) != len(dst):
+            raise ValueError(f"source and target ids must pair up, got {len(src)} source and {len(dst)} target ids")
+        for name, ids in (("source", src), ("target", dst)):
+            unique, counts = np.unique(ids, return_counts=True)
+            if (counts > 1).any():
+                raise ValueError(f"{name} ids must be distinct; repeated: {unique[counts > 1][:10].tolist()}")
+        return cls(src, dst)
+
+
+class SparseTransfer:
+    """Interpolates control-point displacements over a target mesh.
+
+    Parameters
+    ----------
+    target : Mesh
+    control_vertices : (K,) int64
+        Target vertices whose displacement is given.
+    metric : {"surface", "euclidean", "geodesic"}
+        ``surface`` (default): biharmonic interpolation along the mesh with a falloff
+        (:class:`~faceanim.geometry.surface.BiharmonicInterpolation`). ``euclidean``: an RBF through
+        space (the thesis' method). ``geodesic``: an RBF on geodesic distance (kept for comparison;
+        it is unstable, see the benchmark).
+    kernel, smoothing
+        For the two RBF metrics, as for :class:`~faceanim.geometry.rbf.RbfWarp`.
+    falloff
+        For ``surface``: see :class:`~faceanim.geometry.surface.BiharmonicInterpolation`.
+
+    The ``(V, K)`` matrix is computed once; ``__call__`` maps ``(K, 3)`` or ``(T, K, 3)``
+    displacements to ``(V, 3)`` or ``(T, V, 3)``.
+    """
+
+    def __init__(self, target: Mesh, control_vertices, *, metric: str = "surface", kernel: str = "thin_plate",
+                 smoothing: float | None = None, falloff: float = 0.25):
+        if metric not in METRICS:
+            raise ValueError(f"metric must be one of {', '.join(METRICS)}, got {metric!r}")
+        ids = as_index_array(control_vertices, "control_vertices", upper=len(target.vertices))
+        if metric == "surface":
+            self.operator = BiharmonicInterpolation(target, ids, falloff=falloff).operator
+        elif metric == "geodesic":
+            self.operator = SurfaceRbf(target, ids, kernel=kernel, smoothing=smoothing).operator
+        else:
+            centres = target.vertices[ids]
+            self.operator = RbfWarp(centres, np.zeros_like(centres), kernel=kernel, smoothing=smoothing).operator(
+                target.vertices)
+
+    def __call__(self, displacements) -> np.ndarray:
+        displacements = as_array(displacements, "displacements")
+        if displacements.ndim not in (2, 3) or displacements.shape[-2:] != (self.operator.shape[1], 3):
+            raise ValueError(f"displacements must have shape ({self.operator.shape[1]}, 3) or "
+                             f"(T, {self.operator.shape[1]}, 3), got {displacements.shape}")
+        return apply_operator(self.operator, displacements)
+
+
+class DenseTransfer:
+    """Dense correspondence from a target mesh onto a source mesh, for carrying whole-mesh motion.
+
+    Parameters
+    ----------
+    source, target : Mesh
+    pairs : ControlPairs
+        At least 4 corresponding vertices, spread over the face.
+    max_angle : float
+        Degrees; a target vertex only lands on source triangles whose normal is within this angle
+        of its own (after the warp). 180 turns the test off.
+
+    Only the source's parts (connected components) that hold a control vertex are used, so a target
+    face never lands on the source's teeth, eyeballs or lashes.
+    """
+
+    def __init__(self, source: Mesh, target: Mesh, pairs: ControlPairs, *, max_angle: float = 60.0):
+        if len(pairs.source) < 4:
+            raise ValueError(f"the clone method needs at least 4 control pairs, got {len(pairs.source)}")
+        used = _components_with(source, pairs.source)
+        src_pts = source.vertices[pairs.source]
+        dst_pts = target.vertices[pairs.target]
+        # Thin-plate: the smoothest warp through the pairs, exact for any affine difference in pose or size.
+        warp = RbfWarp(src_pts, dst_pts - src_pts, kernel="thin_plate")
+        warped = Mesh(source.vertices + warp(source.vertices), source.triangles[used])
+        self.projection = project_points(warped, target.vertices, normals=target.vertex_normals, max_angle=max_angle)
+        self.matrix = self.projection.matrix(len(source.vertices))  # (Vt, Vs)
+
+    def __call__(self, source_displacements) -> np.ndarray:
+        """Target displacements ``(Vt, 3)`` or ``(T, Vt, 3)`` from source ones ``(Vs, 3)`` / ``(T, Vs, 3)``."""
+        d = as_array(source_displacements, "source_displacements")
+        Vs = self.matrix.shape[1]
+        if d.ndim == 2 and d.shape == (Vs, 3):
+            return self.matrix @ d
+        if d.ndim == 3 and d.shape[1:] == (Vs, 3):
+            return np.stack([self.matrix @ frame for frame in d])
+        raise ValueError(f"source_displacements must have shape ({Vs}, 3) or (T, {Vs}, 3), got {d.shape}")
+
+
+def _components_with(mesh: Mesh, vertex_ids: np.ndarray) -> np.ndarray:
+    """Boolean mask of triangles in the connected components that contain any of ``vertex_ids``."""
+    V = len(mesh.vertices)
+    t = mesh.triangles
+    adjacency = sparse.coo_matrix((np.ones(3 * len(t)), (t.ravel(), np.roll(t, 1, axis=1).ravel())), shape=(V, V))
+    _, label = csgraph.connected_components(adjacency, directed=False)
+    return np.isin(label[t[:, 0]], np.unique(label[vertex_ids]))
+
+
+def transfer_expression(source_neutral: Mesh, source_expression: Mesh, target: Mesh, pairs: ControlPairs, *,
+                        method: str = "clone", metric: str = "surface", kernel: str = "thin_plate",
+                        mask=None) -> Mesh:
+    """The target face wearing the source's expression.
+
+    Parameters
+    ----------
+    source_neutral, source_expression : Mesh
+        The source face at rest and expressing; same vertex count and order.
+    target : Mesh
+        The face to move, at rest; any triangulation, vertex count and order. The result keeps it.
+    pairs : ControlPairs
+        Corresponding vertex ids (source, target).
+    method : {"clone", "rbf"}
+        ``clone`` uses the whole source mesh; ``rbf`` only the displacements at the control pairs.
+    metric, kernel
+        For ``rbf``: see :class:`SparseTransfer`.
+    mask : (Vt,) bool or float in [0, 1], optional
+        Which target vertices may move (partial transfer); a float mask scales the motion.
+
+    Returns
+    -------
+    Mesh
+        ``target`` with moved vertices (same triangles, UVs, texture and parts).
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
+    if source_expression.vertices.shape != source_neutral.vertices.shape:
+        raise ValueError(f"source expression has {len(source_expression.vertices)} vertices but the source neutral "
+                         f"has {len(source_neutral.vertices)}; they must be the same mesh")
+    displacement = source_expression.vertices - source_neutral.vertices
+    if method == "rbf":
+        moved = SparseTransfer(target, pairs.target, metric=metric, kernel=kernel)(displacement[pairs.source])
+    else:
+        moved = DenseTransfer(source_neutral, target, pairs)(displacement)
+    if mask is not None:
+        weights = as_array(mask, "mask", shape=(len(target.vertices),), dtype=np.float64)
+        if weights.min() < 0 or weights.max() > 1:
+            raise ValueError(f"mask values must lie in [0, 1], got range [{weights.min()}, {weights.max()}]")
+        moved = moved * weights[:, None]
+    return target.with_vertices(target.vertices + moved)
