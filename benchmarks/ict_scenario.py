@@ -22,7 +22,6 @@ from faceanim.mpeg4.multipie import MULTIPIE68_OF_FEATURE_POINT, THESIS_16
 
 ICT = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "ict_facekit"
 FACE_VERTICES = 9409  # ICT's "full face area" is vertices 0-9408
-REGIONS = ("lips", "eyes", "brows", "nose", "cheeks", "jaw")
 
 
 def ict_available() -> bool:
@@ -115,20 +114,6 @@ def _farthest_points(vertices, seeds, count):
         chosen.append(pool[nxt])
         d = np.minimum(d, np.linalg.norm(vertices[pool] - vertices[pool[nxt]], axis=1))
     return np.asarray(chosen)
-
-
-def region_labels(points: np.ndarray, landmark_positions: np.ndarray) -> np.ndarray:
-    """Label points by their nearest 68-layout landmark: index into :data:`REGIONS`.
-
-    Jaw-line landmarks label cheeks above the outer lip corners and jaw below them.
-    """
-    group = np.empty(68, dtype=np.int64)
-    group[48:68], group[36:48], group[17:27], group[27:36], group[0:17] = 0, 1, 2, 3, 5
-    nearest = np.argmin(np.linalg.norm(points[:, None] - landmark_positions[None], axis=2), axis=1)
-    label = group[nearest]
-    corner_height = landmark_positions[[48, 54], 1].mean()
-    label[(label == 5) & (points[:, 1] > corner_height)] = 4
-    return label
 
 
 def relative_error(out: np.ndarray, truth: np.ndarray, rest: np.ndarray, where=None) -> np.ndarray:

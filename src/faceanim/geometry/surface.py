@@ -8,10 +8,10 @@ lets the upper lip drag the lower one. Two ways to respect the surface are here:
   Laplacian, with the cotangent Laplacian) that takes the given values at the control vertices,
   optionally fading with distance from them; nothing crosses an opening of the mesh. This is the
   one faceanim uses.
-* :class:`SurfaceRbf`: the RBF kernels on geodesic distance (shortest paths along edges). Measured
-  on ICT-FaceKit it is far worse than either: kernels of geodesic distance are not positive definite,
-  and the fitted weights blow up between centres (``benchmarks/transfer_ict.py``). It stays for the
-  comparison.
+* :class:`SurfaceRbf`: the RBF kernels on geodesic distance (heat method, Crane et al. 2013, from
+  potpourri3d). Measured on ICT-FaceKit it is far worse than either: kernels of geodesic distance are
+  not positive definite, and the fitted weights blow up between centres
+  (``benchmarks/results/transfer_ict.md``). It stays for that comparison.
 """
 
 from __future__ import annotations
@@ -42,59 +42,28 @@ def edge_graph(mesh: Mesh) -> sparse.csr_matrix:
 
 
 def geodesic_distances(mesh: Mesh, sources) -> np.ndarray:
-    """``(S, V)`` shortest-path distances along edges from each source vertex to every vertex.
+    """``(S, V)`` geodesic distances from each source vertex to every vertex (heat method).
 
-    Vertices not connected to a source get ``inf``.
+    Uses potpourri3d's heat-method solver (Crane, Weischedel and Wardetzky 2013), factorised once per
+    mesh. Shortest paths along edges would be simpler, but on a regular triangulation they overestimate
+    diagonal distances by up to 41%. Vertices in a part of the mesh without a source get ``inf``.
 
-    >>> m = Mesh([[0., 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3]])
-    >>> float(geodesic_distances(m, [1])[0, 3])  # along an edge or across the diagonal: both 2
-    2.0
+    >>> m = Mesh([[0., 0, 0], [1, 0, 0], [2, 0, 0], [0, 1, 0], [1, 1, 0], [2, 1, 0]],
+    ...          [[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4]])
+    >>> bool(abs(geodesic_distances(m, [0])[0, 2] - 2.0) < 0.1)  # within the heat method's accuracy
+    True
     """
     sources = as_index_array(sources, "sources", upper=len(mesh.vertices))
-    return csgraph.dijkstra(edge_graph(mesh), directed=False, indices=sources)
+    solver = mesh.__dict__.get("_heat_solver")
+    if solver is None:
+        import potpourri3d
 
-
-class SurfaceRbf:
-    """An RBF over a mesh's vertices that measures distance along the surface.
-
-    Fitted to a set of control vertices; maps values at them (displacements ``(K, 3)`` or frames
-    ``(T, K, 3)``) to values at every vertex.
-
-    Parameters
-    ----------
-    mesh : Mesh
-    control_vertices : (K,) int64
-        Distinct vertex ids.
-    kernel, smoothing
-        As for :class:`~faceanim.geometry.rbf.RbfWarp`. The affine term of ``thin_plate``,
-        ``cubic`` and ``linear`` uses the vertices' positions, so rigid and affine motion are still
-        reproduced exactly.
-
-    Raises
-    ------
-    ValueError
-        Repeated control vertices, or a vertex that no control vertex can reach along the surface.
-    """
-
-    def __init__(self, mesh: Mesh, control_vertices, *, kernel: str = "thin_plate", smoothing: float | None = None):
-        ids = _distinct_ids(mesh, control_vertices)
-        distances = geodesic_distances(mesh, ids)  # (K, V)
-        unreachable = ~np.isfinite(distances).any(axis=0)
-        if unreachable.any():
-            raise ValueError(f"{int(unreachable.sum())} vertices (first: {np.flatnonzero(unreachable)[:5].tolist()}) "
-                             "are not connected to any control vertex along the surface")
-        # A vertex in a component without some control vertex is infinitely far from it; the kernel
-        # then must not see inf, so such distances are capped at the largest finite one.
-        finite_max = distances[np.isfinite(distances)].max()
-        distances = np.where(np.isfinite(distances), distances, 2 * finite_max)
-        self.control_vertices = ids
-        self.operator = rbf_operator_from_distances(
-            distances[:, ids], distances.T, kernel=kernel, smoothing=smoothing,
-            centre_positions=mesh.vertices[ids], point_positions=mesh.vertices)
-
-    def __call__(self, values) -> np.ndarray:
-        """Values at every vertex: ``(V, C)`` or ``(T, V, C)``."""
-        return apply_operator(self.operator, values)
+        solver = potpourri3d.MeshHeatMethodDistanceSolver(mesh.vertices, mesh.triangles)
+        mesh.__dict__["_heat_solver"] = solver
+    _, part = csgraph.connected_components(edge_graph(mesh), directed=False)
+    out = np.stack([solver.compute_distance(int(s)) for s in sources]) if len(sources) else np.zeros((0, len(part)))
+    out[part[None, :] != part[sources][:, None]] = np.inf
+    return out
 
 
 def cotangent_laplacian(mesh: Mesh):
@@ -191,6 +160,55 @@ class BiharmonicInterpolation:
         self.operator = operator
 
     def __call__(self, values) -> np.ndarray:
+        return apply_operator(self.operator, values)
+
+
+class SurfaceRbf:
+    """An RBF over a mesh's vertices that measures distance along the surface.
+
+    Fitted to a set of control vertices; maps values at them (displacements ``(K, 3)`` or frames
+    ``(T, K, 3)``) to values at every vertex.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    control_vertices : (K,) int64
+        Distinct vertex ids.
+    kernel, smoothing
+        As for :class:`~faceanim.geometry.rbf.RbfWarp`. The affine term of ``thin_plate``,
+        ``cubic`` and ``linear`` uses the vertices' positions, so rigid and affine motion are still
+        reproduced exactly.
+
+    Raises
+    ------
+    ValueError
+        Repeated control vertices, or a vertex that no control vertex can reach along the surface.
+    """
+
+    def __init__(self, mesh: Mesh, control_vertices, *, kernel: str = "thin_plate", smoothing: float | None = None):
+        ids = _distinct_ids(mesh, control_vertices)
+        distances = geodesic_distances(mesh, ids)  # (K, V)
+        unreachable = ~np.isfinite(distances).any(axis=0)
+        if unreachable.any():
+            raise ValueError(f"{int(unreachable.sum())} vertices (first: {np.flatnonzero(unreachable)[:5].tolist()}) "
+                             "are not connected to any control vertex along the surface")
+        # A vertex in a component without some control vertex is infinitely far from it; the kernel
+        # then must not see inf, so such distances are capped at the largest finite one.
+        finite_max = distances[np.isfinite(distances)].max()
+        distances = np.where(np.isfinite(distances), distances, 2 * finite_max)
+        # Heat-method distances are close to, but not exactly, symmetric with a zero diagonal; the
+        # kernel system needs both.
+        between = 0.5 * (distances[:, ids] + distances[:, ids].T)
+        np.fill_diagonal(between, 0.0)
+        to_points = distances.T.copy()
+        to_points[ids] = between
+        self.control_vertices = ids
+        self.operator = rbf_operator_from_distances(
+            between, to_points, kernel=kernel, smoothing=smoothing,
+            centre_positions=mesh.vertices[ids], point_positions=mesh.vertices)
+
+    def __call__(self, values) -> np.ndarray:
+        """Values at every vertex: ``(V, C)`` or ``(T, V, C)``."""
         return apply_operator(self.operator, values)
 
 

@@ -76,8 +76,9 @@ class SparseTransfer:
     falloff
         For ``surface``: see :class:`~faceanim.geometry.surface.BiharmonicInterpolation`.
 
-    The ``(V, K)`` matrix is computed once; ``__call__`` maps ``(K, 3)`` or ``(T, K, 3)``
-    displacements to ``(V, 3)`` or ``(T, V, 3)``.
+    Only the target's parts (connected components) that hold a control vertex move; separate parts
+    without one (teeth, eyeballs) keep still. The ``(V, K)`` matrix is computed once; ``__call__``
+    maps ``(K, 3)`` or ``(T, K, 3)`` displacements to ``(V, 3)`` or ``(T, V, 3)``.
     """
 
     def __init__(self, target: Mesh, control_vertices, *, metric: str = "surface", kernel: str = "thin_plate",
@@ -85,14 +86,18 @@ class SparseTransfer:
         if metric not in METRICS:
             raise ValueError(f"metric must be one of {', '.join(METRICS)}, got {metric!r}")
         ids = as_index_array(control_vertices, "control_vertices", upper=len(target.vertices))
+        part, kept = _moving_part(target, ids)
+        local = np.searchsorted(kept, ids)
         if metric == "surface":
-            self.operator = BiharmonicInterpolation(target, ids, falloff=falloff).operator
+            local_operator = BiharmonicInterpolation(part, local, falloff=falloff).operator
         elif metric == "geodesic":
-            self.operator = SurfaceRbf(target, ids, kernel=kernel, smoothing=smoothing).operator
+            local_operator = SurfaceRbf(part, local, kernel=kernel, smoothing=smoothing).operator
         else:
-            centres = target.vertices[ids]
-            self.operator = RbfWarp(centres, np.zeros_like(centres), kernel=kernel, smoothing=smoothing).operator(
-                target.vertices)
+            centres = part.vertices[local]
+            warp = RbfWarp(centres, np.zeros_like(centres), kernel=kernel, smoothing=smoothing)
+            local_operator = warp.operator(part.vertices)
+        self.operator = np.zeros((len(target.vertices), len(ids)))
+        self.operator[kept] = local_operator
 
     def __call__(self, displacements) -> np.ndarray:
         displacements = as_array(displacements, "displacements")
@@ -114,8 +119,9 @@ class DenseTransfer:
         Degrees; a target vertex only lands on source triangles whose normal is within this angle
         of its own (after the warp). 180 turns the test off.
 
-    Only the source's parts (connected components) that hold a control vertex are used, so a target
-    face never lands on the source's teeth, eyeballs or lashes.
+    Only the parts (connected components) of either mesh that hold a control vertex take part: a
+    target face never lands on the source's teeth, eyeballs or lashes, and the target's own separate
+    parts (teeth, eyeballs) keep still.
     """
 
     def __init__(self, source: Mesh, target: Mesh, pairs: ControlPairs, *, max_angle: float = 60.0):
@@ -127,8 +133,12 @@ class DenseTransfer:
         # Thin-plate: the smoothest warp through the pairs, exact for any affine difference in pose or size.
         warp = RbfWarp(src_pts, dst_pts - src_pts, kernel="thin_plate")
         warped = Mesh(source.vertices + warp(source.vertices), source.triangles[used])
-        self.projection = project_points(warped, target.vertices, normals=target.vertex_normals, max_angle=max_angle)
-        self.matrix = self.projection.matrix(len(source.vertices))  # (Vt, Vs)
+        _, moving = _moving_part(target, pairs.target)
+        self.projection = project_points(warped, target.vertices[moving], normals=target.vertex_normals[moving],
+                                         max_angle=max_angle)
+        # Rows of target vertices in parts without a control pair (teeth, eyeballs) stay empty: they keep still.
+        spread = sparse.eye(len(target.vertices), format="csr")[:, moving]
+        self.matrix = sparse.csr_matrix(spread @ self.projection.matrix(len(source.vertices)))
 
     def __call__(self, source_displacements) -> np.ndarray:
         """Target displacements ``(Vt, 3)`` or ``(T, Vt, 3)`` from source ones ``(Vs, 3)`` / ``(T, Vs, 3)``."""
@@ -139,6 +149,17 @@ class DenseTransfer:
         if d.ndim == 3 and d.shape[1:] == (Vs, 3):
             return np.stack([self.matrix @ frame for frame in d])
         raise ValueError(f"source_displacements must have shape ({Vs}, 3) or (T, {Vs}, 3), got {d.shape}")
+
+
+def _moving_part(mesh: Mesh, vertex_ids: np.ndarray) -> tuple[Mesh, np.ndarray]:
+    """The sub-mesh of the parts holding any of ``vertex_ids``, and its vertices' ids in ``mesh``."""
+    used = _components_with(mesh, vertex_ids)
+    kept = np.unique(mesh.triangles[used])
+    if len(kept) == len(mesh.vertices):
+        return mesh, kept
+    local = np.full(len(mesh.vertices), -1)
+    local[kept] = np.arange(len(kept))
+    return Mesh(mesh.vertices[kept], local[mesh.triangles[used]]), kept
 
 
 def _components_with(mesh: Mesh, vertex_ids: np.ndarray) -> np.ndarray:
