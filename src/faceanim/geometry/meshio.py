@@ -128,7 +128,12 @@ def read_mesh(path) -> Mesh:
         raise InputError(f"{path}: no such file")
     if path.stat().st_size == 0:
         raise FileFormatError(path, "is empty")
-    return reader(path)
+    try:
+        return reader(path)
+    except FileFormatError:
+        raise
+    except ValueError as exc:  # the Mesh itself refused the data (non-finite vertices, bad indices)
+        raise FileFormatError(path, str(exc)) from None
 
 
 def write_mesh(path, mesh: Mesh) -> None:
