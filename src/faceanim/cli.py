@@ -29,6 +29,29 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--region", action="append", default=[], metavar="NAME",
                    help="only move this face region (lips, eyes, brows, nose, cheeks, jaw; repeatable; needs "
                         "68 pairs in iBUG order)")
+
+    p = commands.add_parser("track", help="track the face through a video",
+                            description="Track the face in VIDEO (any file FFmpeg reads, an image, or a folder of "
+                                        "images) with MediaPipe's face mesh and save what was seen.")
+    p.add_argument("video", metavar="VIDEO")
+    p.add_argument("-o", "--output", required=True, metavar="TRACK.npz")
+    p.add_argument("--overlay", metavar="OVERLAY.mp4", help="also write the video with landmarks and head axes")
+    p.add_argument("--csv", metavar="LANDMARKS.csv", help="also write landmark pixels per frame")
+    p.add_argument("--start-face", choices=("largest", "left", "right"), default="largest",
+                   help="with several faces, which one to follow (then the nearest in each frame)")
+
+    p = commands.add_parser("encode", help="video or track to an MPEG-4 FAP file",
+                            description="Measure the face's motion in VIDEO_OR_TRACK, apart from head motion, as "
+                                        "MPEG-4 facial animation parameters.")
+    p.add_argument("source", metavar="VIDEO_OR_TRACK")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.fap")
+    p.add_argument("--neutral", metavar="FRAME|START:END|IMAGE",
+                   help="the face at rest (default: the most relaxed half second, found automatically)")
+    p.add_argument("--no-filter", action="store_true", help="turn the One Euro temporal filter off")
+
+    p = commands.add_parser("fap-info", help="summarise a .fap file",
+                            description="Frames, fps, active FAPs with their ranges, and values outside MPEG-4's.")
+    p.add_argument("fap", metavar="FILE.fap")
     return parser
 
 
@@ -43,6 +66,21 @@ def main(argv=None) -> int:
                                     correspondence=args.correspondence, method=args.method, mask=args.mask,
                                     regions=tuple(args.region))
             print(f"wrote {out}")
+        elif args.command == "track":
+            from .capture.tracker import TrackerOptions
+
+            result = pipeline.track(args.video, args.output, overlay=args.overlay, csv=args.csv,
+                                    options=TrackerOptions(start_face=args.start_face))
+            print(f"wrote {args.output}: {len(result)} frames, face found in {int(result.valid.sum())}, "
+                  f"filled {int(result.filled.sum())}")
+        elif args.command == "encode":
+            stream, clipped = pipeline.encode(args.source, args.output, neutral=args.neutral,
+                                              smoothing=not args.no_filter)
+            active = int(stream.mask.any(axis=0).sum())
+            note = f"; {clipped} values clipped to their MPEG-4 range" if clipped else ""
+            print(f"wrote {args.output}: {len(stream)} frames, {active} FAPs{note}")
+        elif args.command == "fap-info":
+            print(pipeline.fap_info(args.fap))
     except (InputError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
         print(f"faceanim: error: {exc}", file=sys.stderr)
         return 2

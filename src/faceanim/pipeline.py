@@ -4,6 +4,7 @@ each other, computes, and writes its output completely or not at all."""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,7 @@ from .errors import FileFormatError, InputError
 from .geometry import read_mesh, write_mesh
 from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
 
-__all__ = ["transfer", "read_pairs"]
+__all__ = ["transfer", "read_pairs", "track", "encode", "fap_info"]
 
 
 def read_pairs(path) -> tuple[np.ndarray, np.ndarray]:
@@ -85,3 +86,111 @@ def transfer(source_neutral, source_expression, target, output, *, correspondenc
     result = transfer_expression(src0, src1, dst, pairs, method=method, mask=allowed)
     write_mesh(output, result)
     return output
+
+
+# ---- capture: video -> Track -> Motion -> FAPs
+
+
+def track(video, output, *, overlay=None, csv=None, options=None, progress=None):
+    """``faceanim track``: track the face through ``video``; write the Track (``.npz``), and optionally
+    an overlay video and a CSV of landmark pixels. Returns the Track."""
+    from .capture.headframe import head_frame
+    from .capture.overlay import write_overlay
+    from .capture.track import track_video
+    from .capture.tracker import TrackerOptions
+
+    output = Path(output)
+    if output.suffix != ".npz":
+        raise InputError(f"{output}: a track is written as .npz")
+    result = track_video(video, options=options or TrackerOptions(), progress=progress)
+    result.save(output)
+    if overlay is not None:
+        _, pose = head_frame(result)
+        write_overlay(result, pose, overlay)
+    if csv is not None:
+        _write_landmark_csv(result, csv)
+    return result
+
+
+def _write_landmark_csv(result, path) -> None:
+    from .atomic import atomic_output
+
+    pixels = result.pixels()
+    count = pixels.shape[1]
+    header = ["frame", "time", "found", "filled"] + [f"{axis}{i}" for i in range(count) for axis in "xy"]
+    rows = [",".join(header)]
+    for t in range(len(result)):
+        cells = [str(t), f"{result.times[t]:.4f}", str(int(result.valid[t])), str(int(result.filled[t]))]
+        cells += ["" if not np.isfinite(v) else f"{v:.2f}" for v in pixels[t].ravel()]
+        rows.append(",".join(cells))
+    with atomic_output(path, suffix=".csv") as tmp:
+        tmp.write_text("\n".join(rows) + "\n")
+
+
+def capture_motion(source, *, neutral=None, smoothing=True, progress=None):
+    """The Motion of a video (or of a saved ``.npz`` track)."""
+    from .capture.headframe import head_frame, track_to_motion
+    from .capture.neutral import parse_neutral
+    from .capture.smoothing import OneEuro
+    from .capture.track import Track, track_video
+    from .capture.tracker import TrackerOptions
+
+    source = Path(source)
+    recorded = Track.load(source) if source.suffix == ".npz" else track_video(source, progress=progress)
+    gaps = recorded.gaps()
+    if gaps:
+        frames = sum(b - a + 1 for a, b in gaps)
+        print(f"faceanim: {source}: {frames} frames in {len(gaps)} stretches have no face "
+              f"(first: frames {gaps[0][0]}-{gaps[0][1]}); they carry no FAPs", file=sys.stderr)
+    window = neutral_points = None
+    if neutral is not None:
+        choice = parse_neutral(str(neutral), len(recorded))
+        if isinstance(choice, tuple):
+            window = choice
+        else:
+            still = track_video(choice, options=TrackerOptions(static=True), progress=False)
+            points, _ = head_frame(still)
+            neutral_points = points[0]
+    return track_to_motion(recorded, neutral=window, smoothing=OneEuro() if smoothing else None,
+                           neutral_points=neutral_points)
+
+
+def encode(source, output, *, neutral=None, smoothing=True, progress=None):
+    """``faceanim encode``: video or track -> ``.fap``. Returns (stream, number of clipped values)."""
+    from .motion import clip_to_range, motion_to_faps
+    from .mpeg4.fapfile import write_fap
+
+    output = Path(output)
+    if output.suffix != ".fap":
+        raise InputError(f"{output}: FAPs are written as .fap")
+    motion = capture_motion(source, neutral=neutral, smoothing=smoothing, progress=progress)
+    stream, clipped = clip_to_range(motion_to_faps(motion, name=Path(source).stem.replace(" ", "_") or "faceanim"))
+    write_fap(output, stream)
+    return stream, clipped
+
+
+def fap_info(path) -> str:
+    """``faceanim fap-info``: a summary of a ``.fap`` file (frames, fps, active FAPs, ranges, and
+    every value outside its MPEG-4 range)."""
+    from .mpeg4 import fap_table
+    from .mpeg4.fapfile import read_fap
+    from .mpeg4.fapstream import fap_ranges
+
+    stream = read_fap(path)
+    table = fap_table()
+    low, high = fap_ranges()
+    active = np.flatnonzero(stream.mask.any(axis=0))
+    outside = stream.out_of_range()
+    lines = [f"{path}: {len(stream)} frames at {stream.fps:g} fps ({len(stream) / stream.fps:.2f} s), "
+             f"name {stream.name}, {len(active)} active FAPs, {int(outside.sum())} values out of range"]
+    lines.append(f"{'FAP':>4} {'name':<22} {'unit':<5} {'frames':>6} {'min':>9} {'max':>9}  range")
+    for j in active:
+        present = stream.mask[:, j]
+        if j < 2:
+            lines.append(f"{j + 1:>4} {table.names[j]:<22} {'-':<5} {int(present.sum()):>6}")
+            continue
+        v = stream.values[present, j]
+        flag = f"  {int(outside[:, j].sum())} out of range" if outside[:, j].any() else ""
+        lines.append(f"{j + 1:>4} {table.names[j]:<22} {table.units[j]:<5} {int(present.sum()):>6} {v.min():>9.0f} "
+                     f"{v.max():>9.0f}  [{low[j]:g}, {high[j]:g}]{flag}")
+    return "\n".join(lines)

@@ -1,0 +1,87 @@
+"""From a `Track` to a `Motion`: head pose apart from expression, filtering, neutral, FAPU."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..motion import Motion
+from ..mpeg4 import fapu_from_points
+from .landmarks import FEATURE_POINT_LANDMARK
+from .metric import metric_geometry_frames
+from .neutral import relaxed_window
+from .smoothing import OneEuro, one_euro
+from .track import Track
+
+__all__ = ["head_frame", "track_to_motion", "landmark_names", "DEFAULT_SMOOTHING"]
+
+DEFAULT_SMOOTHING = OneEuro()
+
+
+def landmark_names(count: int) -> tuple[str, ...]:
+    """Names of MediaPipe's landmarks: the MPEG-4 feature point where one sits, else ``mp<i>``."""
+    names = [f"mp{i}" for i in range(count)]
+    for point, index in FEATURE_POINT_LANDMARK.items():
+        if index < count:
+            names[index] = point
+    return tuple(names)
+
+
+def head_frame(track: Track):
+    """Landmarks in the head frame (cm, MPEG-4 axes) and the head pose, per frame.
+
+    Returns ``points (T, L, 3)`` and ``pose (T, 4, 4)``; frames without landmarks hold NaN and the
+    identity.
+    """
+    T, L, _ = track.landmarks.shape
+    points = np.full((T, L, 3), np.nan)
+    pose = np.tile(np.eye(4), (T, 1, 1))
+    usable = np.flatnonzero(track.usable)
+    if len(usable):
+        points[usable], pose[usable] = metric_geometry_frames(track.landmarks[usable], track.width, track.height)
+    return points, pose
+
+
+def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTHING,
+                    neutral_points=None) -> Motion:
+    """The tracked face's motion.
+
+    Parameters
+    ----------
+    track : Track
+    neutral : (start, end) frames, optional
+        Where the face is at rest; chosen automatically (:func:`relaxed_window`) when None.
+    smoothing : OneEuro or None
+        Temporal filter on head-frame landmarks and pose; None turns it off.
+    neutral_points : (L, 3) float64, optional
+        A neutral measured elsewhere (for example from a separate image), in the head frame;
+        overrides ``neutral``.
+    """
+    points, pose = head_frame(track)
+    usable = track.usable
+    if smoothing is not None:
+        points = one_euro(points, track.times, smoothing)
+        translation = one_euro(pose[:, :3, 3][:, None], track.times, smoothing)[:, 0]
+        linear = one_euro(pose[:, :3, :3], track.times, OneEuro(smoothing.min_cutoff, 0.0, smoothing.d_cutoff))
+        pose = pose.copy()
+        pose[usable, :3, 3] = translation[usable]
+        pose[usable, :3, :3] = linear[usable]
+    if neutral_points is not None:
+        rest = np.asarray(neutral_points, dtype=np.float64)
+    else:
+        if neutral is None:
+            mouth = np.abs(points[:, FEATURE_POINT_LANDMARK["2.2"], 1] - points[:, FEATURE_POINT_LANDMARK["2.3"], 1])
+            neutral = relaxed_window(points, usable, track.fps, mouth=mouth)
+        start, end = neutral
+        chosen = usable[start:end]
+        if not chosen.any():
+            raise InputError(f"the neutral frames {start}:{end} hold no tracked face")
+        rest = points[start:end][chosen].mean(axis=0)
+    names = landmark_names(points.shape[1])
+    lookup = {n: rest[i] for i, n in enumerate(names)}
+    try:
+        fapu = fapu_from_points(lookup)
+    except ValueError as exc:
+        raise InputError(f"the neutral face gives no usable FAPU ({exc})") from None
+    displacements = np.where(usable[:, None, None], points - rest, np.nan)
+    return Motion(names, rest, displacements, pose, track.fps, fapu, valid=usable)

@@ -1,0 +1,65 @@
+"""An overlay video: the source frames with the control points and the head's axes drawn on them."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..atomic import atomic_output
+from .landmarks import FEATURE_POINT_LANDMARK
+from .metric import Camera
+from .track import Track
+from .video import open_frames
+
+__all__ = ["write_overlay"]
+
+_FEATURE_INDICES = np.array(sorted(set(FEATURE_POINT_LANDMARK.values())))
+
+
+def _axes_pixels(pose: np.ndarray, width: int, height: int, length: float, camera: Camera):
+    """Pixels of the head origin and its X (red), Y (green), Z (blue) axis tips, through the pose's camera."""
+    ends = np.array([[0, 0, 0], [length, 0, 0], [0, length, 0], [0, 0, length]], dtype=np.float64)
+    cam = ends @ pose[:3, :3].T + pose[:3, 3]
+    f = 0.5 * height / np.tan(0.5 * np.radians(camera.vertical_fov))
+    x = width / 2 + f * cam[:, 0] / -cam[:, 2]
+    y = height / 2 - f * cam[:, 1] / -cam[:, 2]
+    return np.stack([x, y], axis=1)
+
+
+def write_overlay(track: Track, pose: np.ndarray, output, *, camera: Camera | None = None) -> None:
+    """Write ``output`` (mp4, H.264): every frame with all landmarks (small, grey), the MPEG-4
+    feature points (larger, yellow) and the head axes; frames without a face say so."""
+    import av
+    from PIL import Image, ImageDraw
+
+    camera = camera or Camera()
+    pixels = track.pixels()
+    with open_frames(track.source) as source, atomic_output(output, suffix=".mp4") as tmp:
+        container = av.open(str(tmp), mode="w")
+        try:
+            stream = container.add_stream("libx264", rate=round(track.fps) or 25)
+            stream.width, stream.height = source.width - source.width % 2, source.height - source.height % 2
+            stream.pix_fmt = "yuv420p"
+            for t, (_, rgb) in enumerate(source):
+                if t >= len(track):
+                    break
+                image = Image.fromarray(rgb)
+                draw = ImageDraw.Draw(image)
+                if track.usable[t]:
+                    for x, y in pixels[t]:
+                        draw.point((x, y), fill=(200, 200, 200))
+                    for x, y in pixels[t, _FEATURE_INDICES]:
+                        draw.ellipse((x - 2, y - 2, x + 2, y + 2), fill=(255, 220, 0))
+                    o, *tips = _axes_pixels(pose[t], source.width, source.height, 6.0, camera)
+                    for tip, colour in zip(tips, ((255, 0, 0), (0, 200, 0), (0, 80, 255)), strict=True):
+                        draw.line((*o, *tip), fill=colour, width=2)
+                    if track.filled[t]:
+                        draw.text((8, 8), "filled", fill=(255, 128, 0))
+                else:
+                    draw.text((8, 8), "no face", fill=(255, 0, 0))
+                frame = av.VideoFrame.from_image(image.crop((0, 0, stream.width, stream.height)))
+                for packet in stream.encode(frame):
+                    container.mux(packet)
+            for packet in stream.encode():
+                container.mux(packet)
+        finally:
+            container.close()

@@ -1,0 +1,76 @@
+"""Temporal filtering of tracked landmarks: the One Euro filter, and the jitter figure it is judged by."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["OneEuro", "one_euro", "jitter"]
+
+
+@dataclass(frozen=True)
+class OneEuro:
+    """Settings of the One Euro filter (Casiez, Roussel and Vogel, CHI 2012).
+
+    A low-pass filter whose cut-off rises with speed: still faces are smoothed hard (``min_cutoff``
+    Hz), fast motion passes with little lag (``beta`` Hz more per unit/s of speed). Defaults are
+    for head-frame landmarks in centimetres at video rates.
+    """
+
+    min_cutoff: float = 1.5
+    beta: float = 0.5
+    d_cutoff: float = 1.0
+
+    def __post_init__(self):
+        for name in ("min_cutoff", "beta", "d_cutoff"):
+            if not getattr(self, name) >= 0 or (name != "beta" and getattr(self, name) == 0):
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+
+
+def _alpha(cutoff, dt):
+    tau = 1.0 / (2 * np.pi * cutoff)
+    return 1.0 / (1.0 + tau / dt)
+
+
+def one_euro(signal, times, settings: OneEuro = OneEuro()) -> np.ndarray:
+    """Filter ``signal (T, ...)`` sampled at ``times (T,)`` seconds; NaN frames restart the filter.
+
+    The speed that sets the cut-off is taken per point (the norm over the last axis), so the three
+    coordinates of a landmark are filtered alike.
+
+    >>> t = np.arange(100) / 30.0
+    >>> x = np.ones((100, 1, 3))
+    >>> bool(np.allclose(one_euro(x, t), 1.0))
+    True
+    """
+    x = np.asarray(signal, dtype=np.float64)
+    times = np.asarray(times, dtype=np.float64)
+    out = np.full_like(x, np.nan)
+    previous = derivative = None
+    for t in range(len(x)):
+        if not np.isfinite(x[t]).all():
+            previous = None
+            continue
+        if previous is None:
+            out[t], previous, derivative = x[t], x[t], np.zeros_like(x[t])
+            last_time = times[t]
+            continue
+        dt = max(times[t] - last_time, 1e-6)
+        last_time = times[t]
+        a_d = _alpha(settings.d_cutoff, dt)
+        derivative = a_d * (x[t] - previous) / dt + (1 - a_d) * derivative
+        speed = np.linalg.norm(derivative, axis=-1, keepdims=True)
+        a = _alpha(settings.min_cutoff + settings.beta * speed, dt)
+        previous = a * x[t] + (1 - a) * previous
+        out[t] = previous
+    return out
+
+
+def jitter(points, fps: float, still) -> float:
+    """Mean landmark acceleration (units/s^2) over the frames marked ``still``: the shake a viewer
+    sees on a face that is not moving. ``points (T, K, 3)``, ``still (T,)`` bool."""
+    p = np.asarray(points, dtype=np.float64)
+    accel = np.linalg.norm(p[2:] - 2 * p[1:-1] + p[:-2], axis=-1).mean(axis=-1) * fps * fps
+    mask = np.asarray(still)[1:-1] & np.isfinite(accel)
+    return float(accel[mask].mean()) if mask.any() else float("nan")

@@ -1,0 +1,170 @@
+"""`Motion`, the narrow waist of faceanim, and its conversion to MPEG-4 FAPs.
+
+Every producer (a tracked video, a FAP file, a synthesised expression) makes a Motion; every
+consumer (retargeting, FAP encoding, export) takes one. Control points are named: MPEG-4 feature
+points by their number (``"8.3"``), other points by their producer's name (``"mp61"`` for MediaPipe
+vertex 61). Positions are in the head frame with MPEG-4's axes (+X the face's left, +Y up, +Z out of
+the face), rigid head motion removed and kept apart as a pose per frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .mpeg4 import ANGLE_UNIT, FAP_COUNT, Fapu, fap_table
+from .mpeg4.fapstream import FapStream, fap_ranges
+from .validation import as_array
+
+__all__ = ["Motion", "motion_to_faps", "clip_to_range", "head_angles", "EYEBALL_RADIUS_CM", "JAW_CARRIED"]
+
+EYEBALL_RADIUS_CM = 1.2  # an adult eyeball's radius; turns iris shifts into gaze angles
+# Points on the lower lip and chin, which the jaw carries: their FAPs are measured relative to the
+# chin (2.1), since a player applies open_jaw to them first.
+JAW_CARRIED = frozenset({"2.3", "2.8", "2.9", "2.10", "8.2", "8.7", "8.8"})
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """Named control points moving over time.
+
+    Parameters
+    ----------
+    names : tuple of str, (K,)
+    neutral : (K, 3) float64
+        Rest positions in the head frame.
+    displacements : (T, K, 3) float64
+        Per-frame displacement from ``neutral`` in the head frame; NaN on frames without data.
+    pose : (T, 4, 4) float64
+        Head frame to camera space, per frame (identity when unknown).
+    fps : float
+    fapu : Fapu
+        Measured on ``neutral``.
+    valid : (T,) bool, optional
+        Frames with data; all by default.
+    """
+
+    names: tuple[str, ...]
+    neutral: np.ndarray
+    displacements: np.ndarray
+    pose: np.ndarray
+    fps: float
+    fapu: Fapu
+    valid: np.ndarray | None = None
+
+    def __post_init__(self):
+        names = tuple(self.names)
+        if len(set(names)) != len(names):
+            raise ValueError("control point names must be distinct")
+        neutral = as_array(self.neutral, "neutral", shape=(len(names), 3))
+        d = as_array(self.displacements, "displacements", shape=("T", len(names), 3), finite=False)
+        pose = as_array(self.pose, "pose", shape=(len(d), 4, 4))
+        valid = np.ones(len(d), bool) if self.valid is None else np.asarray(self.valid, dtype=bool)
+        if valid.shape != (len(d),):
+            raise ValueError(f"valid must have shape ({len(d)},), got {valid.shape}")
+        if not np.isfinite(d[valid]).all():
+            raise ValueError("displacements must be finite on valid frames")
+        if not np.isfinite(self.fps) or self.fps <= 0:
+            raise ValueError(f"fps must be positive, got {self.fps}")
+        for field, value in (("names", names), ("neutral", neutral), ("displacements", d), ("pose", pose),
+                             ("valid", valid), ("fps", float(self.fps))):
+            object.__setattr__(self, field, value)
+
+    def __len__(self) -> int:
+        return len(self.displacements)
+
+    def index(self, names) -> np.ndarray:
+        """Positions of the named points; a missing name raises ``KeyError`` naming it."""
+        lookup = {n: i for i, n in enumerate(self.names)}
+        missing = [n for n in names if n not in lookup]
+        if missing:
+            raise KeyError(f"motion has no control point {', '.join(missing)}")
+        return np.array([lookup[n] for n in names], dtype=np.int64)
+
+
+def head_angles(rotations) -> np.ndarray:
+    """(T, 3) pitch, yaw, roll in radians of head rotations ``(T, 3, 3)`` (MPEG-4 axes and signs).
+
+    MPEG-4 words, turned into right-handed angles about the head's own axes: pitch about +X
+    (positive turns the face down), yaw about +Y (positive turns it toward its own left), roll about
+    +Z (positive tilts it toward its own right). ``R = R_y(yaw) R_x(pitch) R_z(roll)``.
+
+    >>> c, s = np.cos(0.1), np.sin(0.1)
+    >>> yaw = np.array([[[c, 0, s], [0, 1, 0], [-s, 0, c]]])
+    >>> [round(float(a), 6) + 0.0 for a in head_angles(yaw)[0]]  # + 0.0 turns -0.0 into 0.0
+    [0.0, 0.1, 0.0]
+    """
+    R = np.asarray(rotations, dtype=np.float64)
+    pitch = np.arcsin(np.clip(-R[:, 1, 2], -1, 1))
+    yaw = np.arctan2(R[:, 0, 2], R[:, 2, 2])
+    roll = np.arctan2(R[:, 1, 0], R[:, 1, 1])
+    return np.stack([pitch, yaw, roll], axis=1)
+
+
+def _rotation_part(pose: np.ndarray) -> np.ndarray:
+    """Rotations of similarity transforms ``(T, 4, 4)``, scale divided out."""
+    A = pose[:, :3, :3]
+    return A / np.cbrt(np.linalg.det(A))[:, None, None]
+
+
+def motion_to_faps(motion: Motion, *, name: str = "faceanim") -> FapStream:
+    """The FAPs a motion's control points observe, frame by frame.
+
+    A translational FAP is its feature point's displacement along the FAP's direction, in its FAPU
+    (``shared/mpeg4/faps.csv``); lower-lip and chin points are measured relative to the jaw
+    (:data:`JAW_CARRIED`). Eyeball yaw and pitch (23-26) come from the pupils' shift in the
+    head frame over an eyeball of :data:`EYEBALL_RADIUS_CM` (so the neutral gaze is the zero); head
+    pitch, yaw and roll (48-50) from the pose relative to the first valid frame's. FAPs whose
+    points the motion lacks are absent (mask False); invalid frames carry no FAPs.
+    """
+    table = fap_table()
+    T = len(motion)
+    values = np.zeros((T, FAP_COUNT))
+    mask = np.zeros((T, FAP_COUNT), dtype=bool)
+    units = motion.fapu.scale()
+    lookup = {n: i for i, n in enumerate(motion.names)}
+    jaw = motion.displacements[:, lookup["2.1"]] if "2.1" in lookup else 0.0
+    for j in range(2, FAP_COUNT):
+        points = table.feature_points[j]
+        if len(points) != 1 or points[0] not in lookup or not table.direction[j].any():
+            continue
+        d = motion.displacements[:, lookup[points[0]]]
+        if points[0] in JAW_CARRIED:  # MPEG-4 moves these with open_jaw; their own FAPs are on top of it
+            d = d - jaw
+        values[:, j] = d @ table.direction[j] / units[j]
+        mask[:, j] = True
+    eyes = {"l": ("3.5", "yaw_l_eyeball", "pitch_l_eyeball"), "r": ("3.6", "yaw_r_eyeball", "pitch_r_eyeball")}
+    for pupil, yaw_name, pitch_name in eyes.values():
+        if pupil in lookup:
+            shift = motion.displacements[:, lookup[pupil]] / EYEBALL_RADIUS_CM
+            for fap, component, sign in ((yaw_name, 0, 1.0), (pitch_name, 1, -1.0)):
+                j = table.number(fap) - 1
+                values[:, j] = sign * np.arcsin(np.clip(shift[:, component], -1, 1)) / ANGLE_UNIT
+                mask[:, j] = True
+    valid = motion.valid
+    if valid.any():
+        R = _rotation_part(motion.pose)
+        reference = R[np.flatnonzero(valid)[0]]
+        relative = np.einsum("ji,tjk->tik", reference, R)  # head rotation since the reference, head frame
+        angles = head_angles(relative)
+        for k, fap in enumerate(("head_pitch", "head_yaw", "head_roll")):
+            j = table.number(fap) - 1
+            values[:, j] = angles[:, k] / ANGLE_UNIT
+            mask[:, j] = True
+    mask &= valid[:, None]
+    values = np.where(mask, np.nan_to_num(values), 0.0)
+    return FapStream(values, mask, motion.fps, name=name)
+
+
+def clip_to_range(stream: FapStream) -> tuple[FapStream, int]:
+    """``stream`` with values outside the MPEG-4 I-frame ranges clipped to them, and how many were.
+
+    Measured motion leaves the legal range when the face does what the standard cannot say: a jaw
+    closing past rest (unidirectional ``open_jaw`` below 0), a chin pulled back as the jaw rotates, a
+    squint closing a lid past its neutral opening.
+    """
+    low, high = fap_ranges()
+    clipped = np.clip(stream.values, low, high)
+    count = int((stream.mask & (clipped != stream.values)).sum())
+    return replace(stream, values=clipped), count

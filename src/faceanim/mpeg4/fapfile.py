@@ -1,0 +1,136 @@
+"""The ASCII ``.fap`` file format (ISO/IEC 14496-2 FBA, Annex A of the visage overview), read and
+written as ``shared/mpeg4/fap_file_format.md`` recommends: tolerant reading (comment lines anywhere,
+integer or decimal values), strict writing (version 2.1, one-token name, integer fps, 68-digit masks,
+integer values, 4 fields for FAP 1 and 6 for FAP 2). Every reading error names the file and line.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import atomic_output
+from ..errors import FileFormatError, InputError
+from .fapstream import FapStream
+from .tables import FAP_COUNT
+
+__all__ = ["read_fap", "write_fap"]
+
+
+def _lines(path: Path):
+    """(line number, tokens) of the lines that are not blank or comments."""
+    try:
+        text = path.read_text(encoding="latin-1")
+    except OSError as exc:
+        raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
+    for number, line in enumerate(text.splitlines(), 1):
+        stripped = line.strip()
+        if stripped and not stripped.startswith("#"):
+            yield number, stripped.split()
+
+
+def _number(token: str, path, line: int, what: str) -> float:
+    try:
+        value = float(token)
+    except ValueError:
+        raise FileFormatError(path, f"{what} {token!r} is not a number", line) from None
+    if not np.isfinite(value):
+        raise FileFormatError(path, f"{what} {token!r} is not finite", line)
+    return value
+
+
+def read_fap(path) -> FapStream:
+    """Read a ``.fap`` file.
+
+    Raises
+    ------
+    InputError
+        The file does not exist or cannot be read.
+    FileFormatError
+        A bad header, a mask that is not 68 zeros and ones, a missing or short value line, a
+        non-numeric token, decreasing frame numbers, or a frame count that disagrees with the
+        header; the message names the file and line. Values outside their MPEG-4 range are kept (see
+        :meth:`FapStream.out_of_range`), never clipped.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    lines = _lines(path)
+    header = next(lines, None)
+    if header is None:
+        raise FileFormatError(path, "is empty (no header line)")
+    header_line, tokens = header
+    if len(tokens) < 4:
+        raise FileFormatError(path, "header must be '<version> <name> <fps> <frame count>'", header_line)
+    _number(tokens[0], path, header_line, "version")
+    name = tokens[1]
+    fps = _number(tokens[-2], path, header_line, "frame rate")
+    count = _number(tokens[-1], path, header_line, "frame count")
+    if fps <= 0 or count < 0 or count != int(count):
+        raise FileFormatError(path, f"header frame rate {tokens[-2]} and frame count {tokens[-1]} must be "
+                                    "positive and whole", header_line)
+
+    values, masks, frames, visemes, expressions = [], [], [], [], []
+    for mask_line, mask_tokens in lines:
+        if len(mask_tokens) != FAP_COUNT or any(t not in ("0", "1") for t in mask_tokens):
+            raise FileFormatError(path, f"FAP mask must be {FAP_COUNT} zeros and ones, got {len(mask_tokens)} "
+                                        f"tokens", mask_line)
+        mask = np.array([t == "1" for t in mask_tokens])
+        value_entry = next(lines, None)
+        if value_entry is None:
+            raise FileFormatError(path, "FAP mask has no value line after it", mask_line)
+        value_line, value_tokens = value_entry
+        expected = 1 + 4 * mask[0] + 6 * mask[1] + int(mask[2:].sum())
+        if len(value_tokens) != expected:
+            raise FileFormatError(path, f"value line must hold the frame number and {expected - 1} values for "
+                                        f"the mask on line {mask_line}, got {len(value_tokens)} tokens", value_line)
+        numbers = [_number(t, path, value_line, "value") for t in value_tokens]
+        frame = numbers.pop(0)
+        if frames and frame < frames[-1]:
+            raise FileFormatError(path, f"frame number {frame:g} comes after frame {frames[-1]:g}", value_line)
+        row = np.zeros(FAP_COUNT)
+        viseme = np.zeros(4, dtype=np.int64)
+        expression = np.zeros(6, dtype=np.int64)
+        if mask[0]:
+            viseme[:] = numbers[:4]
+            numbers = numbers[4:]
+        if mask[1]:
+            expression[:] = numbers[:6]
+            numbers = numbers[6:]
+        row[2:][mask[2:]] = numbers
+        frames.append(frame)
+        values.append(row)
+        masks.append(mask)
+        visemes.append(viseme)
+        expressions.append(expression)
+    if len(frames) != count:
+        raise FileFormatError(path, f"header says {int(count)} frames but the file holds {len(frames)}", header_line)
+    T = len(frames)
+    masks_array = np.array(masks).reshape(T, FAP_COUNT)
+    return FapStream(
+        values=np.array(values).reshape(T, FAP_COUNT), mask=masks_array, fps=fps,
+        frame_numbers=np.array(frames, dtype=np.int64),
+        visemes=np.array(visemes).reshape(T, 4) if masks_array[:, 0].any() else None,
+        expressions=np.array(expressions).reshape(T, 6) if masks_array[:, 1].any() else None, name=name)
+
+
+def write_fap(path, stream: FapStream) -> None:
+    """Write ``stream`` as a version 2.1 ``.fap`` file, complete or not at all.
+
+    Values are rounded to integers (the format's unit is one FAPU count) and fps to a whole number.
+    """
+    lines = [f"2.1 {stream.name} {round(stream.fps)} {len(stream)}"]
+    rounded = np.rint(stream.values).astype(np.int64)
+    for t in range(len(stream)):
+        mask = stream.mask[t]
+        fields = [str(int(stream.frame_numbers[t]))]
+        if mask[0]:
+            fields += [str(int(v)) for v in stream.visemes[t]]
+        if mask[1]:
+            fields += [str(int(v)) for v in stream.expressions[t]]
+        fields += [str(v) for v in rounded[t, 2:][mask[2:]]]
+        lines.append(" ".join("1" if m else "0" for m in mask))
+        lines.append(" ".join(fields))
+    with atomic_output(path) as tmp:
+        tmp.write_text("\n".join(lines) + "\n")

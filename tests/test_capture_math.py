@@ -1,0 +1,138 @@
+"""Capture's arithmetic, without video: alignment, MediaPipe's golden geometry, FAPs, filtering, neutral."""
+
+import re
+
+import numpy as np
+import pytest
+from conftest import shared
+
+from faceanim.capture.landmarks import FEATURE_POINT_LANDMARK, IBUG68_LANDMARK
+from faceanim.capture.metric import canonical_face, metric_geometry
+from faceanim.capture.neutral import parse_neutral, relaxed_window
+from faceanim.capture.smoothing import OneEuro, jitter, one_euro
+from faceanim.errors import InputError
+from faceanim.geometry.align import batch_procrustes, weighted_procrustes
+from faceanim.motion import Motion, clip_to_range, head_angles, motion_to_faps
+from faceanim.mpeg4 import Fapu, fap_table, feature_points
+
+
+def rotation(axis, angle):
+    c, s = np.cos(angle), np.sin(angle)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    R = np.eye(3)
+    R[i, i], R[i, j], R[j, i], R[j, j] = c, -s, s, c
+    return R
+
+
+def test_procrustes_recovers_a_similarity_and_ignores_zero_weights():
+    rng = np.random.default_rng(0)
+    p = rng.normal(size=(30, 3))
+    R = rotation(0, 0.3) @ rotation(1, -0.7)
+    target = 1.7 * p @ R.T + [1, -2, 3]
+    target[:5] += rng.normal(size=(5, 3)) * 10  # outliers ...
+    weights = np.r_[np.zeros(5), np.ones(25)]   # ... with no weight
+    M = weighted_procrustes(p, target, weights)
+    np.testing.assert_allclose(M[:3, :3], 1.7 * R, atol=1e-12)
+    np.testing.assert_allclose(M[:3, 3], [1, -2, 3], atol=1e-12)
+    np.testing.assert_allclose(batch_procrustes(p, target[None], weights)[0], M, atol=1e-12)
+
+
+def test_procrustes_never_reflects():
+    p = np.random.default_rng(1).normal(size=(20, 3))
+    M = weighted_procrustes(p, p * [-1, 1, 1])
+    assert np.linalg.det(M[:3, :3]) > 0
+
+
+def test_mediapipe_golden_geometry():
+    """faceanim's head pose against MediaPipe's own test vector (tolerance 1e-4 as upstream)."""
+    data = shared("mediapipe", "testdata")
+    number = r"([-0-9.eE]+)"
+    text = (data / "face_blendshapes_in_landmarks.prototxt").read_text()
+    landmarks = np.array(re.findall(rf"x:\s*{number}\s*y:\s*{number}\s*z:\s*{number}", text), dtype=float)
+    expected = (data / "face_geometry_expected_out.pbtxt").read_text()
+    mesh = np.array(re.findall(rf"vertex_buffer:\s*{number}", expected), dtype=float).reshape(-1, 5)[:, :3]
+    pose = np.array(re.findall(rf"packed_data:\s*{number}", expected), dtype=float).reshape(4, 4).T  # column-major
+    metric, found = metric_geometry(landmarks, 820, 1024)
+    np.testing.assert_allclose(metric[:468], mesh, atol=1e-4)
+    np.testing.assert_allclose(found, pose, atol=1e-4)
+
+
+def test_landmark_maps_respect_sides_and_symmetry():
+    v = canonical_face().vertices
+    table = feature_points()
+    for point, index in FEATURE_POINT_LANDMARK.items():
+        if index >= 468:
+            continue
+        side = table.sides[table.index(point)]
+        x = v[index, 0]
+        assert {"left": x > 0.1, "right": x < -0.1, "middle": abs(x) < 0.1}[side], point
+    L = IBUG68_LANDMARK
+    for a, b in [(36, 45), (39, 42), (17, 26), (21, 22), (48, 54), (31, 35), (60, 64), (0, 16), (4, 12)]:
+        np.testing.assert_allclose(v[L[a]] * [-1, 1, 1], v[L[b]], atol=0.05)
+
+
+def test_head_angles_follow_mpeg4_words():
+    # pitch about +X turns the face's forward (+Z) down (-Y); yaw about +Y turns it to its left (+X);
+    # roll about +Z tilts its up (+Y) toward its right (-X)
+    np.testing.assert_allclose((rotation(0, 0.2) @ [0, 0, 1])[1], -np.sin(0.2))
+    np.testing.assert_allclose((rotation(1, 0.2) @ [0, 0, 1])[0], np.sin(0.2))
+    np.testing.assert_allclose((rotation(2, 0.2) @ [0, 1, 0])[0], -np.sin(0.2))
+    R = rotation(1, 0.3) @ rotation(0, -0.2) @ rotation(2, 0.1)
+    np.testing.assert_allclose(head_angles(R[None])[0], [-0.2, 0.3, 0.1], atol=1e-12)
+
+
+def small_motion(displace: dict, frames=3):
+    names = ("2.1", "2.2", "2.3", "8.3", "3.5", "3.6")
+    neutral = np.zeros((len(names), 3))
+    d = np.zeros((frames, len(names), 3))
+    for name, vector in displace.items():
+        d[1:, names.index(name)] = vector
+    fapu = Fapu(irisd0=1.0, es0=6.0, ens0=4.0, mns0=2.0, mw0=5.0)
+    return Motion(names, neutral, d, np.tile(np.eye(4), (frames, 1, 1)), 25.0, fapu)
+
+
+def test_motion_to_faps_known_answers():
+    table = fap_table()
+    f = motion_to_faps(small_motion({"2.1": [0, -1.0, 0], "8.3": [0.5, 0, 0], "2.3": [0, -1.0, 0]}))
+    assert f.values[1, table.number("open_jaw") - 1] == pytest.approx(512)          # 1 cm = MNS0/2 down
+    assert f.values[1, table.number("stretch_l_cornerlip_o") - 1] == pytest.approx(102.4)  # MW0/10 outward
+    # the lower lip rode down with the jaw: relative to the jaw it did not move
+    assert f.values[1, table.number("raise_b_midlip") - 1] == pytest.approx(0)
+    assert f.values[0].max() == 0 and f.mask[:, 2].all()
+    gaze = motion_to_faps(small_motion({"3.5": [0.6, 0, 0]}))
+    assert gaze.values[1, table.number("yaw_l_eyeball") - 1] == pytest.approx(np.arcsin(0.5) / 1e-5)
+
+
+def test_clipping_counts_what_it_changes():
+    f = motion_to_faps(small_motion({"2.1": [0, 1.0, 0]}))  # jaw up: below open_jaw's range
+    clipped, count = clip_to_range(f)
+    assert count == 2 and clipped.values[1, 2] == 0 and not clipped.out_of_range().any()
+
+
+def test_one_euro_smooths_still_noise_and_follows_motion():
+    rng = np.random.default_rng(2)
+    t = np.arange(300) / 30.0
+    still = rng.normal(scale=0.05, size=(300, 10, 3))
+    assert jitter(one_euro(still, t), 30, np.ones(300, bool)) < 0.3 * jitter(still, 30, np.ones(300, bool))
+    ramp = np.repeat((10 * t)[:, None, None], 3, axis=2)  # 10 cm/s
+    lag_fast = np.abs(one_euro(ramp, t, OneEuro(beta=0.5)) - ramp)[150:].mean()
+    lag_slow = np.abs(one_euro(ramp, t, OneEuro(beta=0.0)) - ramp)[150:].mean()
+    assert lag_fast < 0.5 * lag_slow
+    gap = still.copy()
+    gap[100] = np.nan
+    assert np.isnan(one_euro(gap, t)[100]).all() and np.isfinite(one_euro(gap, t)[101]).all()
+
+
+def test_relaxed_window_finds_the_rest():
+    rng = np.random.default_rng(3)
+    T = 100
+    points = np.zeros((T, 5, 3))
+    points[:25] += np.sin(np.arange(25))[:, None, None]  # busy
+    points[75:] += 2.0                                     # held expression; rest in between
+    points += rng.normal(scale=0.01, size=points.shape)
+    start, end = relaxed_window(points, np.ones(T, bool), 25.0, seconds=0.4)
+    assert 25 <= start and end <= 75
+    assert parse_neutral("10:20", 100) == (10, 20) and parse_neutral("5", 100) == (5, 6)
+    assert parse_neutral("face.png", 100) == "face.png"
+    with pytest.raises(InputError, match=r"--neutral 90:120: frames must lie in \[0, 100\)"):
+        parse_neutral("90:120", 100)
