@@ -39,6 +39,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", metavar="LANDMARKS.csv", help="also write landmark pixels per frame")
     p.add_argument("--start-face", choices=("largest", "left", "right"), default="largest",
                    help="with several faces, which one to follow (then the nearest in each frame)")
+    p.add_argument("--model", metavar="face_landmarker.task",
+                   help="track with MediaPipe's Tasks face landmarker from this bundle; adds 52 blendshape scores")
 
     p = commands.add_parser("encode", help="video or track to an MPEG-4 FAP file",
                             description="Measure the face's motion in VIDEO_OR_TRACK, apart from head motion, as "
@@ -70,7 +72,7 @@ def main(argv=None) -> int:
             from .capture.tracker import TrackerOptions
 
             result = pipeline.track(args.video, args.output, overlay=args.overlay, csv=args.csv,
-                                    options=TrackerOptions(start_face=args.start_face))
+                                    options=TrackerOptions(start_face=args.start_face), model=args.model)
             print(f"wrote {args.output}: {len(result)} frames, face found in {int(result.valid.sum())}, "
                   f"filled {int(result.filled.sum())}")
         elif args.command == "encode":

@@ -91,7 +91,7 @@ def transfer(source_neutral, source_expression, target, output, *, correspondenc
 # ---- capture: video -> Track -> Motion -> FAPs
 
 
-def track(video, output, *, overlay=None, csv=None, options=None, progress=None):
+def track(video, output, *, overlay=None, csv=None, options=None, progress=None, model=None):
     """``faceanim track``: track the face through ``video``; write the Track (``.npz``), and optionally
     an overlay video and a CSV of landmark pixels. Returns the Track."""
     from .capture.headframe import head_frame
@@ -102,7 +102,7 @@ def track(video, output, *, overlay=None, csv=None, options=None, progress=None)
     output = Path(output)
     if output.suffix != ".npz":
         raise InputError(f"{output}: a track is written as .npz")
-    result = track_video(video, options=options or TrackerOptions(), progress=progress)
+    result = track_video(video, options=options or TrackerOptions(), progress=progress, model=model)
     result.save(output)
     if overlay is not None:
         _, pose = head_frame(result)
@@ -118,10 +118,13 @@ def _write_landmark_csv(result, path) -> None:
     pixels = result.pixels()
     count = pixels.shape[1]
     header = ["frame", "time", "found", "filled"] + [f"{axis}{i}" for i in range(count) for axis in "xy"]
+    header += list(result.blendshape_names)
     rows = [",".join(header)]
     for t in range(len(result)):
         cells = [str(t), f"{result.times[t]:.4f}", str(int(result.valid[t])), str(int(result.filled[t]))]
         cells += ["" if not np.isfinite(v) else f"{v:.2f}" for v in pixels[t].ravel()]
+        if result.blendshapes is not None:
+            cells += ["" if not np.isfinite(v) else f"{v:.4f}" for v in result.blendshapes[t]]
         rows.append(",".join(cells))
     with atomic_output(path, suffix=".csv") as tmp:
         tmp.write_text("\n".join(rows) + "\n")

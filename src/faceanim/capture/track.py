@@ -10,7 +10,7 @@ import numpy as np
 
 from ..atomic import atomic_output
 from ..errors import FileFormatError, InputError
-from .tracker import FaceTracker, TrackerOptions
+from .tracker import TrackerOptions, open_tracker
 from .video import open_frames
 
 __all__ = ["Track", "track_video", "fill_gaps"]
@@ -36,6 +36,9 @@ class Track:
         Frame size in pixels.
     source : str
         The video it came from.
+    blendshapes : (T, 52) float64, optional
+        MediaPipe's blendshape scores per frame (Tasks tracker only; NaN where no face).
+    blendshape_names : tuple of str
     """
 
     landmarks: np.ndarray
@@ -46,6 +49,8 @@ class Track:
     width: int
     height: int
     source: str = ""
+    blendshapes: np.ndarray | None = None
+    blendshape_names: tuple[str, ...] = ()
 
     def __len__(self) -> int:
         return len(self.valid)
@@ -68,9 +73,11 @@ class Track:
     def save(self, path) -> None:
         """Write as ``.npz``, complete or not at all."""
         with atomic_output(path, suffix=".npz") as tmp:
+            extra = {} if self.blendshapes is None else {
+                "blendshapes": self.blendshapes, "blendshape_names": np.array(self.blendshape_names)}
             np.savez_compressed(tmp, landmarks=self.landmarks, valid=self.valid, filled=self.filled,
                                 times=self.times, fps=self.fps, width=self.width, height=self.height,
-                                source=self.source)
+                                source=self.source, **extra)
 
     @classmethod
     def load(cls, path) -> Track:
@@ -79,8 +86,10 @@ class Track:
             raise InputError(f"{path}: no such file")
         try:
             with np.load(path) as data:
+                shapes = data["blendshapes"] if "blendshapes" in data else None
+                names = tuple(str(n) for n in data["blendshape_names"]) if "blendshape_names" in data else ()
                 return cls(data["landmarks"], data["valid"], data["filled"], data["times"], float(data["fps"]),
-                           int(data["width"]), int(data["height"]), str(data["source"]))
+                           int(data["width"]), int(data["height"]), str(data["source"]), shapes, names)
         except (KeyError, ValueError, OSError) as exc:
             raise FileFormatError(path, f"is not a faceanim track ({exc})") from None
 
@@ -104,8 +113,9 @@ def fill_gaps(track: Track, max_gap: float = 0.2) -> Track:
 
 
 def track_video(path, *, options: TrackerOptions | None = None, max_gap: float = 0.2,
-                progress: bool | None = None) -> Track:
-    """Track the face through a video, an image or an image folder.
+                progress: bool | None = None, model=None) -> Track:
+    """Track the face through a video, an image or an image folder; with ``model`` (a
+    ``face_landmarker.task`` file) through MediaPipe's Tasks API, which adds 52 blendshape scores.
 
     Raises
     ------
@@ -116,14 +126,18 @@ def track_video(path, *, options: TrackerOptions | None = None, max_gap: float =
 
     options = options or TrackerOptions()
     show = sys.stderr.isatty() if progress is None else progress
-    frames, valid, times = [], [], []
-    with open_frames(path) as source, FaceTracker(options) as tracker:
+    frames, valid, times, shapes = [], [], [], []
+    names = ()
+    with open_frames(path) as source, open_tracker(options, model) as tracker:
         for index, (time, rgb) in enumerate(tqdm(source, total=source.frame_count, disable=not show,
                                                  unit="frame", desc="tracking")):
-            face = tracker(rgb)
+            time = time if time is not None else index / source.fps
+            face = tracker(rgb, time)
             valid.append(face is not None)
             frames.append(face)
-            times.append(time if time is not None else index / source.fps)
+            times.append(time)
+            shapes.append(tracker.blendshapes)
+            names = names or getattr(tracker, "blendshape_names", ())
         fps, width, height = source.fps, source.width, source.height
     if not frames:
         raise InputError(f"{path}: holds no frames")
@@ -134,6 +148,12 @@ def track_video(path, *, options: TrackerOptions | None = None, max_gap: float =
     for i, face in enumerate(frames):
         if face is not None:
             landmarks[i] = face
+    blendshapes = None
+    if model is not None and names:
+        blendshapes = np.full((len(frames), len(names)), np.nan)
+        for i, row in enumerate(shapes):
+            if row is not None:
+                blendshapes[i] = row
     track = Track(landmarks, np.array(valid), np.zeros(len(frames), bool), np.array(times, dtype=np.float64),
-                  fps, width, height, str(path))
+                  fps, width, height, str(path), blendshapes, tuple(names))
     return fill_gaps(track, max_gap)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FaceTracker", "TrackerOptions", "START_FACES"]
+__all__ = ["FaceTracker", "TaskTracker", "TrackerOptions", "START_FACES", "open_tracker"]
 
 START_FACES = ("largest", "left", "right")
 
@@ -112,23 +112,25 @@ class FaceTracker:
             faces.append(np.array([(p.x, p.y, p.z) for p in face.landmark], dtype=np.float64))
         return faces
 
-    def __call__(self, rgb: np.ndarray) -> np.ndarray | None:
+    blendshapes = None  # FaceMesh gives none; see TaskTracker
+
+    def __call__(self, rgb: np.ndarray, time: float | None = None) -> np.ndarray | None:
         faces = self.all_faces(rgb)
-        if not faces:
-            return None
+        return faces[self._follow(faces)] if faces else None
+
+    def _follow(self, faces) -> int:
+        """Index of the face to follow: the chosen one at the start, then the nearest to the last."""
         if self._previous is None:
-            face = self._pick_first(faces)
+            if self.options.start_face == "largest":
+                index = int(np.argmax([np.prod(np.ptp(f[:, :2], axis=0)) for f in faces]))
+            else:
+                x = [f[:, 0].mean() for f in faces]
+                index = int(np.argmin(x) if self.options.start_face == "left" else np.argmax(x))
         else:
             centre = self._previous[:, :2].mean(axis=0)
-            face = min(faces, key=lambda f: np.linalg.norm(f[:, :2].mean(axis=0) - centre))
-        self._previous = face
-        return face
-
-    def _pick_first(self, faces):
-        if self.options.start_face == "largest":
-            return max(faces, key=lambda f: np.prod(np.ptp(f[:, :2], axis=0)))
-        x = [f[:, 0].mean() for f in faces]
-        return faces[int(np.argmin(x) if self.options.start_face == "left" else np.argmax(x))]
+            index = int(np.argmin([np.linalg.norm(f[:, :2].mean(axis=0) - centre) for f in faces]))
+        self._previous = faces[index]
+        return index
 
     def close(self):
         if self._mesh is not None:
@@ -140,3 +142,70 @@ class FaceTracker:
 
     def __exit__(self, *exc):
         self.close()
+
+
+class TaskTracker(FaceTracker):
+    """MediaPipe's Tasks face landmarker, from a ``face_landmarker.task`` bundle the user gives:
+    the same 478 points plus 52 blendshape scores per frame (``self.blendshapes`` after each call,
+    names in ``self.blendshape_names``)."""
+
+    def __init__(self, model, options: TrackerOptions | None = None):
+        from pathlib import Path
+
+        from ..errors import InputError
+
+        self.options = options or TrackerOptions()
+        self._previous = None
+        self.blendshapes = None
+        self.blendshape_names = ()
+        model = Path(model)
+        if not model.is_file():
+            raise InputError(f"{model}: no such model file")
+        try:
+            from mediapipe.tasks.python import BaseOptions, vision
+        except ImportError:
+            raise ImportError("face tracking needs MediaPipe: pip install 'faceanim[capture]'") from None
+        mode = vision.RunningMode.IMAGE if self.options.static else vision.RunningMode.VIDEO
+        settings = vision.FaceLandmarkerOptions(
+            base_options=BaseOptions(model_asset_path=str(model)), running_mode=mode,
+            num_faces=self.options.max_faces, output_face_blendshapes=True,
+            min_face_detection_confidence=self.options.min_detection_confidence,
+            min_tracking_confidence=self.options.min_tracking_confidence)
+        try:
+            with _native_stderr_silenced():
+                self._mesh = vision.FaceLandmarker.create_from_options(settings)
+        except (RuntimeError, ValueError) as exc:
+            raise InputError(f"{model}: not a MediaPipe face landmarker model ({exc})") from None
+        self._image = __import__("mediapipe").Image
+        self._format = __import__("mediapipe").ImageFormat.SRGB
+        self._last_ms = -1
+
+    def _detect(self, rgb: np.ndarray, time: float | None):
+        image = self._image(image_format=self._format, data=np.ascontiguousarray(rgb))
+        if self.options.static:
+            return self._mesh.detect(image)
+        ms = max(self._last_ms + 1, int(round(1000 * (time or 0.0))))  # strictly increasing, as VIDEO mode needs
+        self._last_ms = ms
+        return self._mesh.detect_for_video(image, ms)
+
+    def all_faces(self, rgb: np.ndarray, time: float | None = None) -> list[np.ndarray]:
+        result = self._detect(rgb, time)
+        self._shapes = result.face_blendshapes or []
+        return [np.array([(p.x, p.y, p.z) for p in face], dtype=np.float64) for face in result.face_landmarks]
+
+    def __call__(self, rgb: np.ndarray, time: float | None = None) -> np.ndarray | None:
+        faces = self.all_faces(rgb, time)
+        if not faces:
+            self.blendshapes = None
+            return None
+        index = self._follow(faces)
+        if index < len(self._shapes):
+            shapes = self._shapes[index]
+            self.blendshape_names = tuple(c.category_name for c in shapes)
+            self.blendshapes = np.array([c.score for c in shapes], dtype=np.float64)
+        return faces[index]
+
+
+def open_tracker(options: TrackerOptions | None = None, model=None) -> FaceTracker:
+    """The FaceMesh tracker, or the Tasks tracker when a ``face_landmarker.task`` model is given."""
+    return FaceTracker(options) if model is None else TaskTracker(model, options)
