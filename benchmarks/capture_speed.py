@@ -20,9 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from report import publish  # noqa: E402
+
 os.environ.setdefault("GLOG_minloglevel", "2")
 VIDEOS = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "videos"
-RESULTS = Path(__file__).resolve().parent / "results" / "capture_speed.md"
 
 
 def mediapipe_alone(path) -> tuple[float, int]:
@@ -79,9 +81,7 @@ def main() -> int:
     for name, size, frames, found, alone, ours, ratio, clipped, written, raw, filtered in rows:
         lines.append(f"| {name} | {size} | {frames} | {found:.1f} | {alone:.1f} | {ours:.1f} | {ratio:.2f} | "
                      f"{clipped} / {written} | {raw:.1f} | {filtered:.1f} |")
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    publish("capture_speed.md", lines)
     return 0
 
 

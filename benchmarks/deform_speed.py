@@ -25,10 +25,9 @@ from scipy.interpolate import RBFInterpolator
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from ict_scenario import _farthest_points, ict_available, load_ict  # noqa: E402
+from report import publish  # noqa: E402
 
 from faceanim.geometry import RbfWarp, apply_operator  # noqa: E402
-
-RESULTS = Path(__file__).resolve().parent / "results" / "deform_speed.md"
 
 
 def expression_track(model, frames: int, rng) -> np.ndarray:
@@ -109,9 +108,7 @@ def main(argv=None) -> int:
         f"Largest difference between the two outputs on the {n} compared frames: {difference:.1e} "
         f"(largest displacement {motion:.2f} model units).",
     ]
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    publish("deform_speed.md", lines)
     return 0
 
 

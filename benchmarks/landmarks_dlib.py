@@ -19,8 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from report import publish  # noqa: E402
+
 DLIB = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "dlib_faces"
-RESULTS = Path(__file__).resolve().parent / "results" / "landmarks_dlib.md"
 
 
 def dlib_faces():
@@ -92,9 +94,7 @@ def main() -> int:
     for name, box, io, nme, groups in rows:
         cells = " | ".join(f"{v:.3f}" for v in groups.values()) if groups else " | ".join(["-"] * 5)
         lines.append(f"| {name} | {box} | {io:.0f} | {nme:.3f} | {cells} |")
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    publish("landmarks_dlib.md", lines)
     return 0
 
 

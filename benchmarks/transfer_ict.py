@@ -22,10 +22,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from ict_scenario import control_sets, ict_available, load_ict, relative_error, remade_face  # noqa: E402
+from report import publish  # noqa: E402
 
 from faceanim.retarget import REGIONS, ControlPairs, DenseTransfer, SparseTransfer, label_regions  # noqa: E402
-
-RESULTS = Path(__file__).resolve().parent / "results" / "transfer_ict.md"
 
 # (label, method, options): the thesis' RBF first, then what faceanim adds.
 METHODS = [
@@ -111,9 +110,7 @@ def main(argv=None) -> int:
               "|---|" + "---|" * len(shown)]
     for i, name in enumerate(model.expression_names):
         lines.append(f"| {name} | " + " | ".join(f"{per_expression[k][i]:.3f}" for k in shown) + " |")
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text("\n".join(lines) + "\n")
-    print(f"wrote {RESULTS}")
+    print(f"wrote {publish('transfer_ict.md', lines, echo=False)}")
     return 0
 
 
