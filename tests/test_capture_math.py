@@ -136,3 +136,26 @@ def test_relaxed_window_finds_the_rest():
     assert parse_neutral("face.png", 100) == "face.png"
     with pytest.raises(InputError, match=r"--neutral 90:120: frames must lie in \[0, 100\)"):
         parse_neutral("90:120", 100)
+
+
+def test_short_gaps_are_filled_and_flagged_long_ones_reported(tmp_path):
+    from faceanim.capture.track import Track, fill_gaps
+
+    T = 40
+    landmarks = np.repeat(np.linspace(0, 1, T)[:, None, None], 3, axis=2) * np.ones((T, 478, 3))
+    valid = np.ones(T, bool)
+    valid[[5, 6]] = False          # 2 frames: short
+    valid[20:32] = False           # 12 frames at 25 fps: longer than 0.2 s
+    landmarks[~valid] = np.nan
+    track = Track(landmarks, valid, np.zeros(T, bool), np.arange(T) / 25.0, 25.0, 64, 64, "synthetic")
+    assert track.gaps() == [(5, 6), (20, 31)]
+    filled = fill_gaps(track, max_gap=0.2)
+    assert filled.filled.tolist() == [t in (5, 6) for t in range(T)]
+    np.testing.assert_allclose(filled.landmarks[5:7, 0, 0], np.linspace(0, 1, T)[5:7])  # linear ramp restored
+    assert filled.gaps() == [(20, 31)] and not filled.valid[5]
+    filled.save(tmp_path / "t.npz")
+    back = Track.load(tmp_path / "t.npz")
+    np.testing.assert_array_equal(back.filled, filled.filled)
+    (tmp_path / "bad.npz").write_bytes(b"not a track")
+    with pytest.raises(InputError, match="bad.npz: is not a faceanim track"):
+        Track.load(tmp_path / "bad.npz")

@@ -174,3 +174,20 @@ def test_neutral_choices(d18, tmp_path):
     assert main(["encode", track, "-o", str(tmp_path / "i.fap"), "--neutral", str(photo), "--no-filter"]) == 0
     assert np.abs(read_fap(tmp_path / "i.fap").values[0, 2:19]).max() < 60  # frame 0 is that image
     assert main(["encode", track, "-o", str(tmp_path / "x.fap"), "--neutral", "500:600"]) == 2
+
+
+def test_image_folder_is_a_sequence(tmp_path):
+    from PIL import Image
+
+    from faceanim.capture.track import track_video
+    from faceanim.capture.video import open_frames
+
+    with open_frames(shared("videos", "d0.mp4")) as source:
+        for i, (_, rgb) in enumerate(source):
+            if i >= 5:
+                break
+            Image.fromarray(rgb).save(tmp_path / f"frame{i:03d}.png")
+    (tmp_path / "notes.txt").write_text("ignored")
+    track = track_video(tmp_path, progress=False)
+    assert len(track) == 5 and track.valid.all() and track.fps == 25.0
+    np.testing.assert_allclose(track.times, np.arange(5) / 25.0)
