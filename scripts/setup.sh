@@ -1,11 +1,16 @@
 #!/usr/bin/env bash
 # Installs what faceanim needs on a fresh Debian machine with Python 3.11: the package, editable, with
 # video and face tracking (PyAV and MediaPipe wheels bring their own FFmpeg and models) and its test
-# tools, and the Khronos glTF validator (npm) for the export tests. No system packages are needed yet;
-# later parts (rendering, browser tests) add theirs here.
+# tools, offscreen rendering (moderngl with Mesa's EGL from Debian, installed with apt-get when missing;
+# run as root), and the Khronos glTF validator (npm) for the export tests.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-python3 -m pip install --quiet --disable-pip-version-check -e ".[capture,test]"
+# Headless OpenGL for rendering: Mesa's EGL and its software rasteriser (llvmpipe) when absent.
+if ! ldconfig -p | grep -q libEGL_mesa; then
+  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
+    libegl1 libegl-mesa0 libgl1-mesa-dri libgbm1 >/dev/null
+fi
+python3 -m pip install --quiet --disable-pip-version-check -e ".[capture,render,test]"
 # The Khronos glTF validator, for the export tests (they skip where Node.js is absent).
 if command -v npm >/dev/null 2>&1; then
   npm install --silent --no-audit --no-fund --prefix tools/node gltf-validator@2.0.0-dev.3.10 >/dev/null

@@ -1,0 +1,78 @@
+import numpy as np
+import pytest
+
+from faceanim.geometry import Mesh
+from faceanim.render import Camera, front_camera, look_at
+
+moderngl = pytest.importorskip("moderngl", reason="rendering needs faceanim[render]")
+
+
+@pytest.fixture(scope="module")
+def renderer():
+    from faceanim.render.rasterizer import Renderer
+
+    try:
+        r = Renderer(96, 64)
+    except RuntimeError as exc:
+        pytest.skip(str(exc))
+    yield r
+    r.close()
+
+
+def blob(point, size=0.02):
+    """A tiny triangle pair (a square) centred at ``point``, facing +z."""
+    p = np.asarray(point, dtype=float)
+    corners = p + size * np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]])
+    return Mesh(corners, [[0, 1, 2], [0, 2, 3]])
+
+
+def test_look_at_and_projection():
+    camera = Camera(look_at([0, 0, 5], [0, 0, 0]), 40.0, 96, 64)
+    np.testing.assert_allclose(camera.project([[0, 0, 0]]), [[48, 32]])
+    right, up = camera.project([[1, 0, 0], [0, 1, 0]])
+    assert right[0] > 48 and up[1] < 32  # +x to the right, +y up (pixel rows go down)
+
+
+@pytest.mark.parametrize("point", [(0.3, 0.2, 0.0), (-0.5, -0.3, 0.2), (0.0, 0.0, -0.4)])
+def test_rendered_position_matches_the_camera_projection(renderer, point):
+    camera = Camera(look_at([0.2, 0.1, 4], [0, 0, 0]), 30.0, 96, 64)
+    image = renderer.render(blob(point), camera, colour=(255, 0, 0))
+    ys, xs = np.nonzero((image[..., 0] > 100) & (image[..., 1] < 100))
+    assert len(xs) > 0
+    centre = np.array([xs.mean() + 0.5, ys.mean() + 0.5])  # pixel centres
+    np.testing.assert_allclose(centre, camera.project([point])[0], atol=1.0)
+
+
+def test_background_is_drawn_upright_behind_the_mesh(renderer):
+    background = np.zeros((64, 96, 3), np.uint8)
+    background[:32, :, 0] = 255  # top half red
+    background[32:, :, 2] = 255  # bottom half blue
+    camera = Camera(look_at([0, 0, 4], [0, 0, 0]), 30.0, 96, 64)
+    image = renderer.render(blob((0, 0, 0)), camera, background=background)
+    assert image[5, 5].tolist() == [255, 0, 0] and image[58, 5].tolist() == [0, 0, 255]
+    assert image[32, 48, 0] != 255 or image[32, 48, 2] != 0  # the mesh covers the middle
+
+
+def test_textured_mode_shows_the_texture(renderer):
+    texture = np.zeros((8, 8, 3), np.uint8)
+    texture[..., 1] = 255  # green
+    square = Mesh([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], [[0, 1, 2], [0, 2, 3]],
+                  uv=[[0, 0], [1, 0], [1, 1], [0, 1]], texture=texture)
+    camera = front_camera(square.vertices, 96, 64)
+    textured = renderer.render(square, camera, mode="textured")
+    shaded = renderer.render(square, camera, mode="shaded")
+    centre = textured[32, 48].astype(int)
+    assert centre[1] > 150 and centre[0] < 30 and centre[2] < 30
+    assert not np.array_equal(textured, shaded)
+    wire = renderer.render(square, camera, mode="wireframe")
+    assert (np.abs(wire.astype(int) - shaded.astype(int)).sum(axis=2) > 100).any()  # edges drawn
+
+
+def test_render_errors(renderer):
+    square = blob((0, 0, 0))
+    with pytest.raises(ValueError, match="mode must be one of shaded, textured, wireframe"):
+        renderer.render(square, front_camera(square.vertices, 96, 64), mode="toon")
+    with pytest.raises(ValueError, match="camera is 10x10 but the renderer 96x64"):
+        renderer.render(square, front_camera(square.vertices, 10, 10))
+    with pytest.raises(ValueError, match=r"vertical_fov must be in \(0, 180\)"):
+        Camera(np.eye(4), 0.0, 10, 10)
