@@ -1,0 +1,88 @@
+"""FAPs onto a target: per-frame control-point displacements, then the whole mesh."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.animation import Animation
+from ..mpeg4 import ANGLE_UNIT, fap_table
+from ..mpeg4.fapstream import FapStream
+from .target import Target
+from .transfer import SparseTransfer
+
+__all__ = ["fap_displacements", "animate_faps", "held"]
+
+# Lower-lip and chin points ride with the jaw: open_jaw (moving 2.1) moves them too (as in encoding).
+_JAW_CARRIED = ("2.3", "2.8", "2.9", "2.10", "8.2", "8.7", "8.8")
+
+
+def held(stream: FapStream) -> np.ndarray:
+    """(T, 68) values where a FAP absent from a frame keeps its last value (0 before its first), as an
+    MPEG-4 decoder does for FAPs a frame does not carry."""
+    values = np.where(stream.mask, stream.values, np.nan)
+    values[0] = np.where(np.isnan(values[0]), 0.0, values[0])
+    for t in range(1, len(values)):
+        missing = np.isnan(values[t])
+        values[t, missing] = values[t - 1, missing]
+    return values
+
+
+def fap_displacements(stream: FapStream, target: Target) -> tuple[tuple[str, ...], np.ndarray]:
+    """The target's feature points that FAPs move, and their displacements ``(T, K, 3)`` (model units,
+    MPEG-4 axes: +X the face's left, +Y up, +Z out of the face)."""
+    table = fap_table()
+    values = held(stream)
+    scale = target.fapu.scale()
+    moved: dict[str, np.ndarray] = {}
+    for j in range(2, len(table.names)):
+        points = table.feature_points[j]
+        if len(points) != 1 or points[0] not in target.points or not table.direction[j].any():
+            continue
+        step = values[:, j:j + 1] * scale[j] * table.direction[j]
+        moved[points[0]] = moved.get(points[0], 0.0) + step
+    if "2.1" in moved:
+        for name in _JAW_CARRIED:
+            if name in target.points:
+                moved[name] = moved.get(name, 0.0) + moved["2.1"]
+    names = tuple(moved)
+    return names, np.stack([moved[n] for n in names], axis=1) if names else np.zeros((len(stream), 0, 3))
+
+
+def head_rotations(stream: FapStream) -> np.ndarray:
+    """(T, 3, 3) head rotations from FAPs 48-50 (pitch, yaw, roll), ``R = R_y R_x R_z``."""
+    table = fap_table()
+    values = held(stream)
+    pitch, yaw, roll = (values[:, table.number(n) - 1] * ANGLE_UNIT for n in ("head_pitch", "head_yaw", "head_roll"))
+    c, s = np.cos, np.sin
+    R = np.zeros((len(stream), 3, 3))
+    Rx = np.stack([np.ones_like(pitch), 0 * pitch, 0 * pitch, 0 * pitch, c(pitch), -s(pitch), 0 * pitch, s(pitch),
+                   c(pitch)], 1).reshape(-1, 3, 3)
+    Ry = np.stack([c(yaw), 0 * yaw, s(yaw), 0 * yaw, np.ones_like(yaw), 0 * yaw, -s(yaw), 0 * yaw, c(yaw)],
+                  1).reshape(-1, 3, 3)
+    Rz = np.stack([c(roll), -s(roll), 0 * roll, s(roll), c(roll), 0 * roll, 0 * roll, 0 * roll, np.ones_like(roll)],
+                  1).reshape(-1, 3, 3)
+    R[:] = Ry @ Rx @ Rz
+    return R
+
+
+def animate_faps(stream: FapStream, target: Target, *, head_motion: bool = False, pivot=None) -> Animation:
+    """The target animated by ``stream``.
+
+    Feature-point displacements (in the target's FAPU) are spread over the mesh by surface-aware
+    interpolation (:class:`SparseTransfer`); feature points no FAP moves are held still, so the
+    motion stays where MPEG-4 puts it. With ``head_motion`` the whole mesh also turns by FAPs 48-50
+    about ``pivot`` (default: the centre of the target's feature points).
+    """
+    names, moving = fap_displacements(stream, target)
+    still = [n for n in target.points if n not in names]
+    controls = list(names) + still
+    displacements = np.concatenate([moving, np.zeros((len(stream), len(still), 3))], axis=1)
+    ids = target.ids(controls)
+    unique, first = np.unique(ids, return_index=True)  # two names on one vertex: keep the first
+    field = SparseTransfer(target.mesh, unique)(displacements[:, first])
+    positions = target.mesh.vertices + field
+    if head_motion:
+        centre = target.mesh.vertices[target.ids(list(target.points))].mean(axis=0) if pivot is None else pivot
+        R = head_rotations(stream)
+        positions = np.einsum("tij,tvj->tvi", R, positions - centre) + centre
+    return Animation(target.mesh, positions, stream.fps)

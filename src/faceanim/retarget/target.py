@@ -1,0 +1,115 @@
+"""`Target`: a mesh to animate, where its control points sit on it, and its FAPU."""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FileFormatError, InputError
+from ..geometry.mesh import Mesh
+from ..mpeg4 import Fapu, fapu_from_points, feature_points
+
+__all__ = ["Target", "target_from_json", "target_from_fdp"]
+
+
+@dataclass(frozen=True, eq=False)
+class Target:
+    """A mesh with named control points (MPEG-4 feature points by number, ``"8.3"``) on its vertices.
+
+    ``points`` maps names to vertex ids; ``fapu`` is the face's FAPU (measured from the points when
+    not given: see :meth:`measure_fapu`).
+    """
+
+    mesh: Mesh
+    points: dict
+    fapu: Fapu
+
+    @classmethod
+    def from_points(cls, mesh: Mesh, points: dict, fapu: Fapu | None = None, *, source: str = "") -> Target:
+        """Check ``points`` (name -> vertex id) against ``mesh`` and measure FAPU if not given."""
+        where = f"{source}: " if source else ""
+        V = len(mesh.vertices)
+        bad = {n: i for n, i in points.items() if not isinstance(i, (int, np.integer)) or not 0 <= int(i) < V}
+        if bad:
+            name, index = next(iter(bad.items()))
+            raise InputError(f"{where}point {name} names vertex {index}, but the mesh has vertices 0-{V - 1}")
+        points = {str(n): int(i) for n, i in points.items()}
+        return cls(mesh, points, fapu or measure_fapu(mesh, points, source=source))
+
+    def ids(self, names) -> np.ndarray:
+        return np.array([self.points[n] for n in names], dtype=np.int64)
+
+
+def measure_fapu(mesh: Mesh, points: dict, *, source: str = "") -> Fapu:
+    """FAPU from the target's feature points; pupils (3.5, 3.6), when missing, are taken as the
+    midpoints of the eye corners (3.7/3.11 and 3.8/3.12)."""
+    p = {n: mesh.vertices[i] for n, i in points.items()}
+    for pupil, corners in (("3.5", ("3.7", "3.11")), ("3.6", ("3.8", "3.12"))):
+        if pupil not in p and all(c in p for c in corners):
+            p[pupil] = 0.5 * (p[corners[0]] + p[corners[1]])
+    try:
+        return fapu_from_points(p)
+    except (KeyError, ValueError) as exc:
+        where = f"{source}: " if source else ""
+        raise InputError(f"{where}cannot measure FAPU: {str(exc).strip(chr(39))}") from None
+
+
+def target_from_json(mesh: Mesh, path) -> Target:
+    """Control points from a JSON object ``{"8.3": vertex id, ...}`` (or ``{"points": {...}}``)."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except OSError as exc:
+        raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
+    except json.JSONDecodeError as exc:
+        raise FileFormatError(path, f"is not valid JSON ({exc.msg})", exc.lineno) from None
+    data = data.get("points", data) if isinstance(data, dict) else data
+    if not isinstance(data, dict) or not data:
+        raise FileFormatError(path, 'must map feature-point names to vertex ids, like {"8.3": 1520}')
+    unknown = [n for n in data if n not in feature_points().names and not n.startswith("mp")]
+    if unknown:
+        raise FileFormatError(path, f"unknown feature point {unknown[0]!r} (MPEG-4 names look like '8.3')")
+    return Target.from_points(mesh, data, source=str(path))
+
+
+def target_from_fdp(mesh: Mesh, path) -> Target:
+    """Control points and FAPU from an XfaceEd ``.fdp`` XML file.
+
+    Xface models are several submeshes, and an ``.fdp`` gives each point's vertex within the submesh
+    it ``affects`` (the face, but also the teeth for 2.1, the eyes for the pupils). ``mesh`` is taken
+    to be the submesh that holds most points; points on other submeshes are left out.
+    """
+    path = Path(path)
+    try:
+        root = ET.parse(path).getroot()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
+    except ET.ParseError as exc:
+        raise FileFormatError(path, f"is not valid XML ({exc})", exc.position[0]) from None
+    if root.tag != "xfdp":
+        raise FileFormatError(path, f"is not an XfaceEd FDP file (root element <{root.tag}>, expected <xfdp>)")
+    entries = list(root.iter("fdp"))
+    submeshes = [fdp.get("affects") for fdp in entries]
+    main = max(set(submeshes), key=submeshes.count) if entries else None
+    points = {}
+    for fdp in entries:
+        if fdp.get("affects") != main:
+            continue
+        try:
+            points[fdp.get("name")] = int(fdp.get("index"))
+        except (TypeError, ValueError):
+            raise FileFormatError(path, f"feature point {fdp.get('name')!r} has no integer index") from None
+    if not points:
+        raise FileFormatError(path, "names no feature points")
+    fapu = None
+    element = root.find("head/fapu")
+    if element is not None:
+        try:
+            fapu = Fapu(*(float(element.get(k)) for k in ("IRISD0", "ES0", "ENS0", "MNS0", "MW0")))
+        except (TypeError, ValueError) as exc:
+            raise FileFormatError(path, f"<fapu> is incomplete ({exc})") from None
+    return Target.from_points(mesh, points, fapu, source=str(path))

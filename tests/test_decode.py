@@ -1,0 +1,110 @@
+import json
+
+import numpy as np
+import pytest
+from conftest import grid_mesh, shared
+
+from faceanim.errors import FileFormatError, InputError
+from faceanim.geometry import Mesh
+from faceanim.mpeg4 import FAP_COUNT, Fapu, fap_table
+from faceanim.mpeg4.fapfile import read_fap
+from faceanim.mpeg4.fapstream import FapStream
+from faceanim.retarget.decode import animate_faps, fap_displacements, held
+from faceanim.retarget.target import Target, target_from_fdp, target_from_json
+
+TABLE = fap_table()
+
+
+def stream_of(frames: dict, count=3):
+    values = np.zeros((count, FAP_COUNT))
+    mask = np.zeros((count, FAP_COUNT), bool)
+    for (t, fap), value in frames.items():
+        j = TABLE.number(fap) - 1
+        values[t, j], mask[t, j] = value, True
+    return FapStream(values, mask, 25.0)
+
+
+def face_grid():
+    """A 9x9 grid carrying the feature points FAPU needs and a few more."""
+    mesh = grid_mesh(9, size=8.0)
+    at = {"2.1": 4, "2.3": 13, "2.2": 22, "8.3": 24, "8.4": 20, "9.15": 40, "3.1": 61, "3.3": 52, "3.2": 55,
+          "3.4": 46, "3.5": 60, "3.6": 56}
+    return Target(mesh, at, Fapu(irisd0=1.0, es0=4.0, ens0=2.0, mns0=2.0, mw0=4.0))
+
+
+def test_known_displacements_and_the_jaw_carrying_the_lower_lip():
+    target = face_grid()
+    names, d = fap_displacements(stream_of({(1, "open_jaw"): 512, (1, "stretch_l_cornerlip_o"): 256}), target)
+    moved = dict(zip(names, d[1], strict=True))
+    np.testing.assert_allclose(moved["2.1"], [0, -1.0, 0])   # 512/1024 of MNS0 = 2 -> 1 down
+    np.testing.assert_allclose(moved["2.3"], [0, -1.0, 0])   # the lower lip rides with the jaw
+    np.testing.assert_allclose(moved["8.3"], [1.0, 0, 0])    # 256/1024 of MW0 = 4 -> 1 to the face's left
+    assert np.abs(d[0]).max() == 0
+
+
+def test_absent_faps_keep_their_last_value():
+    s = stream_of({(0, "open_jaw"): 100, (2, "open_jaw"): 300}, count=4)
+    np.testing.assert_array_equal(held(s)[:, 2], [100, 100, 300, 300])
+
+
+def test_animation_moves_the_points_exactly_and_head_yaw_turns_left():
+    target = face_grid()
+    s = stream_of({(1, "open_jaw"): 512, (2, "head_yaw"): 10000})
+    still = animate_faps(s, target)
+    np.testing.assert_allclose(still.positions[1, 4] - target.mesh.vertices[4], [0, -1, 0], atol=1e-9)
+    np.testing.assert_allclose(still.positions[1, 60], target.mesh.vertices[60], atol=1e-9)  # an unmoved point
+    turned = animate_faps(s, target, head_motion=True, pivot=np.zeros(3))
+    yaw = np.array([[np.cos(0.1), 0, np.sin(0.1)], [0, 1, 0], [-np.sin(0.1), 0, np.cos(0.1)]])
+    np.testing.assert_allclose(turned.positions[2], still.positions[2] @ yaw.T, atol=1e-9)
+    assert turned.positions[2, 8, 2] < still.positions[2, 8, 2]  # the face's left side (+x) turns away (-z)
+
+
+def test_joy_fap_on_the_ict_face_raises_and_widens_the_lip_corners():
+    shared("ict_facekit", "ict_deltas_full.npz")
+    from ict_scenario import load_ict
+
+    from faceanim.mpeg4.multipie import MULTIPIE68_OF_FEATURE_POINT
+
+    model = load_ict()
+    mesh = model.mesh(model.neutral)
+    target = Target.from_points(mesh, {n: int(model.landmarks[i]) for n, i in MULTIPIE68_OF_FEATURE_POINT.items()})
+    stream = read_fap(shared("xface", "Faps", "joy.fap"))
+    animation = animate_faps(stream, target)
+    for corner, side in (("8.3", "l"), ("8.4", "r")):
+        raised = stream.values[:, TABLE.number(f"raise_{side}_cornerlip_o") - 1] > 50
+        widened = stream.values[:, TABLE.number(f"stretch_{side}_cornerlip_o") - 1] > 50
+        d = animation.positions[:, target.points[corner]] - mesh.vertices[target.points[corner]]
+        outward = 1 if side == "l" else -1
+        assert raised.sum() > 10 and (d[raised, 1] > 0.05).all()
+        assert widened.sum() > 10 and (outward * d[widened, 0] > 0.05).all()
+
+
+def test_target_files(tmp_path):
+    mesh = grid_mesh(9, size=8.0)
+    points = {"2.1": 4, "2.2": 22, "8.3": 24, "8.4": 20, "9.15": 40, "3.1": 61, "3.3": 52, "3.2": 55, "3.4": 46,
+              "3.7": 62, "3.11": 59, "3.8": 57, "3.12": 54}
+    (tmp_path / "t.json").write_text(json.dumps(points))
+    target = target_from_json(mesh, tmp_path / "t.json")
+    assert target.points["8.3"] == 24 and target.fapu.mw0 == pytest.approx(4.0)  # pupils from eye corners
+    (tmp_path / "bad.json").write_text(json.dumps({"8.3": 999}))
+    with pytest.raises(InputError, match="bad.json: point 8.3 names vertex 999, but the mesh has vertices 0-80"):
+        target_from_json(mesh, tmp_path / "bad.json")
+    (tmp_path / "name.json").write_text(json.dumps({"lip": 3}))
+    with pytest.raises(FileFormatError, match="unknown feature point 'lip'"):
+        target_from_json(mesh, tmp_path / "name.json")
+    (tmp_path / "few.json").write_text(json.dumps({"8.3": 3}))
+    with pytest.raises(InputError, match="few.json: cannot measure FAPU: FAPU needs feature points 2.2"):
+        target_from_json(mesh, tmp_path / "few.json")
+    (tmp_path / "broken.json").write_text('{"8.3": 3,\n')
+    with pytest.raises(FileFormatError, match="broken.json:2: is not valid JSON"):
+        target_from_json(mesh, tmp_path / "broken.json")
+
+
+def test_xface_fdp():
+    path = shared("xface", "Faces", "alice", "alice.fdp")
+    big = Mesh(np.random.default_rng(0).normal(size=(6000, 3)), [[0, 1, 2]])
+    target = target_from_fdp(big, path)
+    assert len(target.points) == 32 and target.points["2.1"] == 2395  # the face submesh; teeth and eyes left out
+    assert (target.fapu.irisd0, target.fapu.es0, target.fapu.mns0) == (16, 69, 30)
+    with pytest.raises(InputError, match=r"alice.fdp: point 2.1 names vertex 2395, but the mesh has vertices 0-99"):
+        target_from_fdp(Mesh(np.zeros((100, 3)) + np.arange(100)[:, None], [[0, 1, 2]]), path)
