@@ -108,3 +108,33 @@ def test_xface_fdp():
     assert (target.fapu.irisd0, target.fapu.es0, target.fapu.mns0) == (16, 69, 30)
     with pytest.raises(InputError, match=r"alice.fdp: point 2.1 names vertex 2395, but the mesh has vertices 0-99"):
         target_from_fdp(Mesh(np.zeros((100, 3)) + np.arange(100)[:, None], [[0, 1, 2]]), path)
+
+
+def test_automatic_placement_on_the_ict_face():
+    shared("ict_facekit", "ict_deltas_full.npz")
+    pytest.importorskip("moderngl", reason="placement renders the mesh: needs faceanim[render]")
+    pytest.importorskip("mediapipe", reason="placement tracks the render: needs faceanim[capture]")
+    from ict_scenario import load_ict
+
+    from faceanim.retarget.placement import auto_target
+
+    model = load_ict()
+    mesh = model.mesh(model.neutral)
+    target = auto_target(mesh)
+    truth = model.neutral[model.landmarks]
+    # the points land on the face they name (nose tip on the nose tip, mouth corners at the corners)
+    for point, landmark in (("9.3", 30), ("8.3", 54), ("8.4", 48), ("3.7", 45), ("3.12", 36)):
+        assert np.linalg.norm(mesh.vertices[target.points[point]] - truth[landmark]) < 0.8, point
+    assert mesh.vertices[target.points["8.3"], 0] > 0 > mesh.vertices[target.points["8.4"], 0]  # face's own left
+    assert 4.0 < target.fapu.mw0 < 6.5 and 5.0 < target.fapu.es0 < 7.5
+
+
+def test_automatic_placement_refuses_a_mesh_without_a_face():
+    pytest.importorskip("moderngl", reason="placement renders the mesh: needs faceanim[render]")
+    pytest.importorskip("mediapipe", reason="placement tracks the render: needs faceanim[capture]")
+    from test_project import bumpy_sphere
+
+    from faceanim.retarget.placement import auto_target
+
+    with pytest.raises(InputError, match="automatic placement found no face on the rendered mesh"):
+        auto_target(bumpy_sphere())

@@ -50,6 +50,15 @@ class Camera:
         h = np.c_[points, np.ones(len(points))] @ self.projection.T
         return h[:, :2] / h[:, 2:3]
 
+    def unproject(self, pixels, distance) -> np.ndarray:
+        """World points ``(N, 3)`` at ``distance (N,)`` along the viewing axis behind ``pixels (N, 2)``."""
+        pixels = as_array(pixels, "pixels", shape=("N", 2))
+        distance = np.asarray(distance, dtype=np.float64).reshape(-1)
+        x = (pixels[:, 0] - self.width / 2) / self.focal * distance
+        y = -(pixels[:, 1] - self.height / 2) / self.focal * distance
+        camera_points = np.c_[x, y, -distance, np.ones(len(distance))]
+        return (camera_points @ np.linalg.inv(self.world_to_camera).T)[:, :3]
+
     def gl_matrix(self, near: float, far: float) -> np.ndarray:
         """(4, 4) OpenGL clip transform (projection @ view) for depths between ``near`` and ``far``."""
         t = np.tan(0.5 * np.radians(self.vertical_fov))

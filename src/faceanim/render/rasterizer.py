@@ -101,10 +101,12 @@ class Renderer:
         self._quad = ctx.vertex_array(self._quad_program, [(ctx.buffer(corners.tobytes()), "2f", "corner")])
 
     def render(self, mesh: Mesh, camera: Camera, *, positions=None, mode: str = "shaded",
-               colour=(200, 170, 150), background: np.ndarray | None = None) -> np.ndarray:
+               colour=(200, 170, 150), background: np.ndarray | None = None, depth: bool = False):
         """Draw ``mesh`` (at ``positions (V, 3)`` if given) seen by ``camera``.
 
         ``background``: an ``(height, width, 3)`` uint8 image drawn behind the mesh (an overlay).
+        With ``depth=True`` also returns ``(height, width)`` float64 distances along the camera's
+        viewing axis (inf where no surface is seen): ``(image, depth)``.
         """
         import moderngl
 
@@ -117,8 +119,8 @@ class Renderer:
         vertices = split.vertices if positions is None else np.asarray(positions, dtype=np.float64)[split.source_vertex]
         textured = mode == "textured" and mesh.texture is not None and split.uv is not None
         uv = split.uv if split.uv is not None else np.zeros((len(vertices), 2))
-        depth = (np.c_[vertices, np.ones(len(vertices))] @ camera.world_to_camera.T)[:, 2]
-        near, far = max(1e-3, 0.5 * -depth.max()), 2.0 * -depth.min() + 1e-3
+        camera_z = (np.c_[vertices, np.ones(len(vertices))] @ camera.world_to_camera.T)[:, 2]
+        near, far = max(1e-3, 0.5 * -camera_z.max()), 2.0 * -camera_z.min() + 1e-3
         clip = camera.gl_matrix(near, far).astype("f4")
 
         self._fbo.use()
@@ -166,9 +168,16 @@ class Renderer:
             ctx.wireframe = False
             ctx.polygon_offset = (0.0, 0.0)
         pixels = np.frombuffer(self._fbo.read(components=3, alignment=1), dtype=np.uint8)
+        image = pixels.reshape(self.height, self.width, 3)[::-1].copy()  # GL's first row is the bottom
+        distance = None
+        if depth:
+            raw = np.frombuffer(self._fbo.read(attachment=-1, components=1, dtype="f4", alignment=1), dtype=np.float32)
+            z = 2.0 * raw.reshape(self.height, self.width)[::-1].astype(np.float64) - 1.0
+            distance = 2.0 * far * near / ((far + near) - z * (far - near))
+            distance[raw.reshape(self.height, self.width)[::-1] >= 1.0] = np.inf
         for resource in resources:
             resource.release()
-        return pixels.reshape(self.height, self.width, 3)[::-1].copy()  # GL's first row is the bottom
+        return (image, distance) if depth else image
 
     def close(self):
         if self._ctx is not None:
