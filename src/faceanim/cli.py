@@ -51,6 +51,23 @@ def _parser() -> argparse.ArgumentParser:
                    help="the face at rest (default: the most relaxed half second, found automatically)")
     p.add_argument("--no-filter", action="store_true", help="turn the One Euro temporal filter off")
 
+    for name, help_text, source in (
+            ("animate", "a video of a face drives a 3D face", "VIDEO"),
+            ("decode", "an MPEG-4 FAP file drives a 3D face", "FILE.fap")):
+        p = commands.add_parser(name, help=help_text, description=help_text[0].upper() + help_text[1:] + (
+            "; the result is a glTF binary with morph targets and an animation."))
+        p.add_argument("source", metavar=source)
+        p.add_argument("--target", required=True, metavar="MESH", help="the face to animate (.obj, .glb, .ply)")
+        p.add_argument("-o", "--output", required=True, metavar="OUT.glb")
+        group = p.add_mutually_exclusive_group()
+        group.add_argument("--points", metavar="POINTS.json",
+                           help='control points as {"8.3": vertex id, ...} (default: placed automatically)')
+        group.add_argument("--fdp", metavar="FILE.fdp", help="control points and FAPU from an XfaceEd .fdp file")
+        p.add_argument("--preview", metavar="PREVIEW.mp4", help="also render the animation to a video")
+        p.add_argument("--head-motion", action="store_true", help="turn the head as the FAPs (48-50) say")
+        if name == "animate":
+            p.add_argument("--fap", metavar="OUT.fap", help="also write the FAPs that drive it")
+
     p = commands.add_parser("fap-info", help="summarise a .fap file",
                             description="Frames, fps, active FAPs with their ranges, and values outside MPEG-4's.")
     p.add_argument("fap", metavar="FILE.fap")
@@ -81,6 +98,17 @@ def main(argv=None) -> int:
             active = int(stream.mask.any(axis=0).sum())
             note = f"; {clipped} values clipped to their MPEG-4 range" if clipped else ""
             print(f"wrote {args.output}: {len(stream)} frames, {active} FAPs{note}")
+        elif args.command == "decode":
+            animation = pipeline.decode(args.source, args.output, target_mesh=args.target, points=args.points,
+                                        fdp=args.fdp, preview=args.preview, head_motion=args.head_motion)
+            print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
+                                                                       else ""))
+        elif args.command == "animate":
+            animation, _ = pipeline.animate(args.source, args.output, target_mesh=args.target, points=args.points,
+                                            fdp=args.fdp, preview=args.preview, fap=args.fap,
+                                            head_motion=args.head_motion)
+            print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
+                                                                       else ""))
         elif args.command == "fap-info":
             print(pipeline.fap_info(args.fap))
     except (InputError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:

@@ -13,7 +13,7 @@ from .errors import FileFormatError, InputError
 from .geometry import read_mesh, write_mesh
 from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
 
-__all__ = ["transfer", "read_pairs", "track", "encode", "fap_info"]
+__all__ = ["transfer", "read_pairs", "track", "encode", "fap_info", "load_target", "decode", "animate"]
 
 
 def read_pairs(path) -> tuple[np.ndarray, np.ndarray]:
@@ -197,3 +197,107 @@ def fap_info(path) -> str:
         lines.append(f"{j + 1:>4} {table.names[j]:<22} {table.units[j]:<5} {int(present.sum()):>6} {v.min():>9.0f} "
                      f"{v.max():>9.0f}  [{low[j]:g}, {high[j]:g}]{flag}")
     return "\n".join(lines)
+
+
+# ---- animating a target: FAPs or a video -> Animation -> glTF (and a preview video)
+
+
+def load_target(mesh_path, *, points=None, fdp=None):
+    """A Target from a mesh file and its control points: a JSON file, an Xface ``.fdp``, or, with
+    neither, automatic placement (render, track, cast back)."""
+    from .retarget.placement import auto_target
+    from .retarget.target import target_from_fdp, target_from_json
+
+    if points is not None and fdp is not None:
+        raise InputError("give the control points once: --points or --fdp, not both")
+    mesh = read_mesh(mesh_path)
+    if points is not None:
+        return target_from_json(mesh, points)
+    if fdp is not None:
+        return target_from_fdp(mesh, fdp)
+    return auto_target(mesh)
+
+
+def _check_output(path, suffixes=(".glb",)) -> Path:
+    path = Path(path)
+    if path.suffix.lower() not in suffixes:
+        raise InputError(f"{path}: the animation is written as {' or '.join(suffixes)}")
+    if not path.parent.exists():
+        raise InputError(f"{path}: the folder {path.parent} does not exist")
+    return path
+
+
+def _write_glb(path, animation) -> None:
+    from .export import morphs_from_animation, write_glb
+
+    write_glb(path, animation.mesh, morphs_from_animation(animation))
+
+
+def _preview(path, animation, target, *, source_frames=None, size: int = 480) -> None:
+    """Render the animated target (textured when it has a texture), beside the source frames if given."""
+    from PIL import Image
+
+    from .render.camera import front_camera
+    from .render.rasterizer import Renderer
+    from .render.video import video_writer
+
+    face = animation.mesh.vertices[target.ids(list(target.points))]
+    camera = front_camera(face, size, size, vertical_fov=20.0, margin=1.5)
+    mode = "textured" if animation.mesh.texture is not None else "shaded"
+    width = size * (2 if source_frames is not None else 1)
+    source = iter(source_frames) if source_frames is not None else None
+    with Renderer(size, size) as renderer, video_writer(path, animation.fps, width, size) as write:
+        for positions in animation.positions:
+            frame = renderer.render(animation.mesh, camera, positions=positions, mode=mode)
+            if source is not None:
+                left = next(source, None)
+                left = np.zeros_like(frame) if left is None else left
+                scale = size / left.shape[0]
+                left = np.asarray(Image.fromarray(left).resize((size, size) if abs(left.shape[1] * scale - size) < 2
+                                                                else (round(left.shape[1] * scale), size)))
+                canvas = np.zeros((size, size, 3), np.uint8)
+                w = min(size, left.shape[1])
+                canvas[:, (size - w) // 2:(size - w) // 2 + w] = left[:, :w]
+                frame = np.hstack([canvas, frame])
+            write(frame)
+
+
+def decode(fap_path, output, *, target_mesh, points=None, fdp=None, preview=None, head_motion=False):
+    """``faceanim decode``: a ``.fap`` file onto a target mesh, written as an animated ``.glb``."""
+    from .mpeg4.fapfile import read_fap
+    from .retarget.decode import animate_faps
+
+    output = _check_output(output)
+    stream = read_fap(fap_path)
+    target = load_target(target_mesh, points=points, fdp=fdp)
+    animation = animate_faps(stream, target, head_motion=head_motion)
+    _write_glb(output, animation)
+    if preview is not None:
+        _preview(preview, animation, target)
+    return animation
+
+
+def animate(video, output, *, target_mesh, points=None, fdp=None, preview=None, fap=None, head_motion=False,
+            progress=None):
+    """``faceanim animate``: a video of a face drives a target mesh, through MPEG-4 FAPs."""
+    from .capture.headframe import head_frame
+    from .capture.overlay import overlay_frames
+    from .capture.track import track_video
+    from .motion import clip_to_range, motion_to_faps
+    from .mpeg4.fapfile import write_fap
+    from .retarget.decode import animate_faps
+
+    output = _check_output(output)
+    target = load_target(target_mesh, points=points, fdp=fdp)
+    recorded = track_video(video, progress=progress)
+    from .capture.headframe import track_to_motion
+
+    stream, _ = clip_to_range(motion_to_faps(track_to_motion(recorded), name=Path(video).stem.replace(" ", "_")))
+    animation = animate_faps(stream, target, head_motion=head_motion)
+    _write_glb(output, animation)
+    if fap is not None:
+        write_fap(fap, stream)
+    if preview is not None:
+        _, pose = head_frame(recorded)
+        _preview(preview, animation, target, source_frames=overlay_frames(recorded, pose))
+    return animation, stream

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..atomic import atomic_output
 from .landmarks import FEATURE_POINT_LANDMARK
 from .metric import Camera
 from .track import Track
@@ -25,41 +24,38 @@ def _axes_pixels(pose: np.ndarray, width: int, height: int, length: float, camer
     return np.stack([x, y], axis=1)
 
 
-def write_overlay(track: Track, pose: np.ndarray, output, *, camera: Camera | None = None) -> None:
-    """Write ``output`` (mp4, H.264): every frame with all landmarks (small, grey), the MPEG-4
-    feature points (larger, yellow) and the head axes; frames without a face say so."""
-    import av
+def overlay_frames(track: Track, pose: np.ndarray, *, camera: Camera | None = None):
+    """Yield every source frame (RGB) with all landmarks (small, grey), the MPEG-4 feature points (larger,
+    yellow) and the head axes drawn; frames without a face say so."""
     from PIL import Image, ImageDraw
 
     camera = camera or Camera()
     pixels = track.pixels()
-    with open_frames(track.source) as source, atomic_output(output, suffix=".mp4") as tmp:
-        container = av.open(str(tmp), mode="w")
-        try:
-            stream = container.add_stream("libx264", rate=round(track.fps) or 25)
-            stream.width, stream.height = source.width - source.width % 2, source.height - source.height % 2
-            stream.pix_fmt = "yuv420p"
-            for t, (_, rgb) in enumerate(source):
-                if t >= len(track):
-                    break
-                image = Image.fromarray(rgb)
-                draw = ImageDraw.Draw(image)
-                if track.usable[t]:
-                    for x, y in pixels[t]:
-                        draw.point((x, y), fill=(200, 200, 200))
-                    for x, y in pixels[t, _FEATURE_INDICES]:
-                        draw.ellipse((x - 2, y - 2, x + 2, y + 2), fill=(255, 220, 0))
-                    o, *tips = _axes_pixels(pose[t], source.width, source.height, 6.0, camera)
-                    for tip, colour in zip(tips, ((255, 0, 0), (0, 200, 0), (0, 80, 255)), strict=True):
-                        draw.line((*o, *tip), fill=colour, width=2)
-                    if track.filled[t]:
-                        draw.text((8, 8), "filled", fill=(255, 128, 0))
-                else:
-                    draw.text((8, 8), "no face", fill=(255, 0, 0))
-                frame = av.VideoFrame.from_image(image.crop((0, 0, stream.width, stream.height)))
-                for packet in stream.encode(frame):
-                    container.mux(packet)
-            for packet in stream.encode():
-                container.mux(packet)
-        finally:
-            container.close()
+    with open_frames(track.source) as source:
+        for t, (_, rgb) in enumerate(source):
+            if t >= len(track):
+                break
+            image = Image.fromarray(rgb)
+            draw = ImageDraw.Draw(image)
+            if track.usable[t]:
+                for x, y in pixels[t]:
+                    draw.point((x, y), fill=(200, 200, 200))
+                for x, y in pixels[t, _FEATURE_INDICES]:
+                    draw.ellipse((x - 2, y - 2, x + 2, y + 2), fill=(255, 220, 0))
+                o, *tips = _axes_pixels(pose[t], source.width, source.height, 6.0, camera)
+                for tip, colour in zip(tips, ((255, 0, 0), (0, 200, 0), (0, 80, 255)), strict=True):
+                    draw.line((*o, *tip), fill=colour, width=2)
+                if track.filled[t]:
+                    draw.text((8, 8), "filled", fill=(255, 128, 0))
+            else:
+                draw.text((8, 8), "no face", fill=(255, 0, 0))
+            yield np.asarray(image)
+
+
+def write_overlay(track: Track, pose: np.ndarray, output, *, camera: Camera | None = None) -> None:
+    """Write ``output`` (mp4, H.264): the source with its landmarks and head axes (:func:`overlay_frames`)."""
+    from ..render.video import video_writer
+
+    with video_writer(output, track.fps, track.width, track.height) as write:
+        for frame in overlay_frames(track, pose, camera=camera):
+            write(frame)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.animation import Animation
-from ..mpeg4 import ANGLE_UNIT, fap_table
+from ..mpeg4 import ANGLE_UNIT, fap_table, feature_points
 from ..mpeg4.fapstream import FapStream
 from .target import Target
 from .transfer import SparseTransfer
@@ -70,11 +70,15 @@ def animate_faps(stream: FapStream, target: Target, *, head_motion: bool = False
 
     Feature-point displacements (in the target's FAPU) are spread over the mesh by surface-aware
     interpolation (:class:`SparseTransfer`); feature points no FAP moves are held still, so the
-    motion stays where MPEG-4 puts it. With ``head_motion`` the whole mesh also turns by FAPs 48-50
+    motion stays where MPEG-4 puts it (other named points of the target are not used here). With
+    ``head_motion`` the whole mesh also turns by FAPs 48-50
     about ``pivot`` (default: the centre of the target's feature points).
     """
     names, moving = fap_displacements(stream, target)
-    still = [n for n in target.points if n not in names]
+    # Pin the MPEG-4 feature points no FAP moves; other control points (a tracker's extra points) are
+    # left free, or they would nail the skin between the feature points in place.
+    feature = set(feature_points().names)
+    still = [n for n in target.points if n not in names and n in feature]
     controls = list(names) + still
     displacements = np.concatenate([moving, np.zeros((len(stream), len(still), 3))], axis=1)
     ids = target.ids(controls)

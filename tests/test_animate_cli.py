@@ -1,0 +1,60 @@
+"""`faceanim decode` and `faceanim animate` end to end (real data; skipped without it)."""
+
+import json
+
+import pytest
+from conftest import shared
+from test_gltf import decode as decode_glb
+from test_gltf import khronos_report
+
+from faceanim.cli import main
+
+pytest.importorskip("moderngl", reason="needs faceanim[render]")
+pytest.importorskip("mediapipe", reason="needs faceanim[capture]")
+av = pytest.importorskip("av", reason="needs faceanim[capture]")
+
+
+def test_decode_joy_onto_ict_with_automatic_placement(tmp_path):
+    mesh = shared("ict_facekit", "obj", "generic_neutral_mesh.obj")
+    joy = shared("xface", "Faps", "joy.fap")
+    out, preview = tmp_path / "joy.glb", tmp_path / "joy.mp4"
+    assert main(["decode", str(joy), "--target", str(mesh), "-o", str(out), "--preview", str(preview)]) == 0
+    report = khronos_report(out)
+    assert report["errors"] == 0 and report["warnings"] == 0, report["messages"]
+    frames, times = decode_glb(out)
+    assert frames.shape[0] == 108 and abs(times[-1] - 107 / 25) < 1e-5
+    with av.open(str(preview)) as container:
+        assert sum(1 for _ in container.decode(video=0)) == 108
+
+
+def test_decode_with_a_points_file_and_bad_inputs(tmp_path, capsys):
+    mesh = shared("ict_facekit", "obj", "generic_neutral_mesh.obj")
+    joy = shared("xface", "Faps", "joy.fap")
+    landmarks = json.loads(shared("ict_facekit", "landmarks_multipie68.json").read_text())["multi_pie_68"]
+    from faceanim.mpeg4.multipie import MULTIPIE68_OF_FEATURE_POINT
+
+    (tmp_path / "p.json").write_text(json.dumps({n: landmarks[i] for n, i in MULTIPIE68_OF_FEATURE_POINT.items()}))
+    assert main(["decode", str(joy), "--target", str(mesh), "--points", str(tmp_path / "p.json"),
+                 "-o", str(tmp_path / "a.glb")]) == 0
+    (tmp_path / "far.json").write_text(json.dumps({"8.3": 10 ** 6}))
+    for args, message in (
+            (["--points", str(tmp_path / "far.json"), "-o", str(tmp_path / "b.glb")], "names vertex 1000000"),
+            (["-o", str(tmp_path / "b.obj")], "b.obj: the animation is written as .glb"),
+            (["-o", str(tmp_path / "nowhere" / "b.glb")], "does not exist")):
+        assert main(["decode", str(joy), "--target", str(mesh), *args]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], err
+    assert not (tmp_path / "b.glb").exists()
+
+
+def test_animate_a_video_onto_ict(tmp_path):
+    mesh = shared("ict_facekit", "obj", "generic_neutral_mesh.obj")
+    video = shared("videos", "d0.mp4")
+    out = tmp_path / "d0.glb"
+    assert main(["animate", str(video), "--target", str(mesh), "-o", str(out), "--fap", str(tmp_path / "d0.fap"),
+                 "--preview", str(tmp_path / "d0.mp4")]) == 0
+    frames, _ = decode_glb(out)
+    assert frames.shape[0] == 78 and (tmp_path / "d0.fap").exists()
+    with av.open(str(tmp_path / "d0.mp4")) as container:
+        first = next(container.decode(video=0))
+        assert first.width == 2 * first.height  # the source beside the target
