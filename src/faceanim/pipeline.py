@@ -278,7 +278,7 @@ def decode(fap_path, output, *, target_mesh, points=None, fdp=None, preview=None
 
 
 def animate(video, output, *, target_mesh, points=None, fdp=None, preview=None, fap=None, head_motion=False,
-            progress=None):
+            progress=None, neutral=None):
     """``faceanim animate``: a video of a face drives a target mesh, through MPEG-4 FAPs."""
     from .capture.headframe import head_frame
     from .capture.overlay import overlay_frames
@@ -289,10 +289,15 @@ def animate(video, output, *, target_mesh, points=None, fdp=None, preview=None, 
 
     output = _check_output(output)
     target = load_target(target_mesh, points=points, fdp=fdp)
-    recorded = track_video(video, progress=progress)
     from .capture.headframe import track_to_motion
+    from .capture.neutral import parse_neutral
 
-    stream, _ = clip_to_range(motion_to_faps(track_to_motion(recorded), name=Path(video).stem.replace(" ", "_")))
+    recorded = track_video(video, progress=progress)
+    window = None if neutral is None else parse_neutral(str(neutral), len(recorded))
+    if window is not None and not isinstance(window, tuple):
+        raise InputError("animate takes the neutral as FRAME or START:END")
+    motion = track_to_motion(recorded, neutral=window)
+    stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
     animation = animate_faps(stream, target, head_motion=head_motion)
     _write_glb(output, animation)
     if fap is not None:

@@ -79,10 +79,24 @@ def place_landmarks(mesh: Mesh, *, size: int = 512, yaws=(0.0, -12.0, 12.0)) -> 
         if found is None:
             raise InputError("automatic placement lost the face when framing it closely")
         points = _surface_points(*found, camera)
-    hit = project_points(mesh, points)
+    # Snap to the part of the mesh (connected component) that most points land on: the skin. Points seen
+    # through the eye or mouth openings would otherwise land on eyeballs or teeth.
+    part = _component_labels(mesh)
+    first = project_points(mesh, points)
+    skin = np.bincount(part[first.corner_vertices[:, 0]]).argmax()
+    on_skin = part[mesh.triangles[:, 0]] == skin
+    hit = project_points(Mesh(mesh.vertices, mesh.triangles[on_skin]), points)
     ids = hit.corner_vertices[np.arange(len(points)), hit.barycentric.argmax(axis=1)]
     _check_symmetry(mesh.vertices[ids])
     return ids
+
+
+def _component_labels(mesh: Mesh) -> np.ndarray:
+    from scipy.sparse.csgraph import connected_components
+
+    from ..geometry.surface import edge_graph
+
+    return connected_components(edge_graph(mesh), directed=False)[1]
 
 
 def _check_symmetry(points: np.ndarray) -> None:
