@@ -76,3 +76,14 @@ def test_render_errors(renderer):
         renderer.render(square, front_camera(square.vertices, 10, 10))
     with pytest.raises(ValueError, match=r"vertical_fov must be in \(0, 180\)"):
         Camera(np.eye(4), 0.0, 10, 10)
+
+
+def test_part_colours_and_hidden_parts(renderer):
+    left = np.array([[-1.0, -0.5, 0], [-0.1, -0.5, 0], [-0.1, 0.5, 0], [-1.0, 0.5, 0]])
+    both = Mesh(np.r_[left, left * [-1, 1, 1]], [[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6]], parts=[0, 0, 1, 1],
+                part_names=("skin", "overlay"))
+    camera = Camera(look_at([0, 0, 4], [0, 0, 0]), 30.0, 96, 64)
+    image = renderer.render(both, camera, part_colours={"skin": (0, 0, 255), "overlay": (255, 0, 0)})
+    assert image[32, 30, 2] > image[32, 30, 0] and image[32, 66, 0] > image[32, 66, 2]  # blue left, red right
+    hidden = renderer.render(both, camera, part_colours={"skin": (0, 0, 255), "overlay": None})
+    assert hidden[32, 66].tolist() == [255, 255, 255]  # the overlay part is not drawn

@@ -101,9 +101,13 @@ class Renderer:
         self._quad = ctx.vertex_array(self._quad_program, [(ctx.buffer(corners.tobytes()), "2f", "corner")])
 
     def render(self, mesh: Mesh, camera: Camera, *, positions=None, mode: str = "shaded",
-               colour=(200, 170, 150), background: np.ndarray | None = None, depth: bool = False):
+               colour=(200, 170, 150), background: np.ndarray | None = None, depth: bool = False,
+               part_colours: dict | None = None):
         """Draw ``mesh`` (at ``positions (V, 3)`` if given) seen by ``camera``.
 
+        ``part_colours`` maps part names (``mesh.part_names``, OBJ materials) to RGB colours for the
+        shaded mode, or to None to leave a part out (a see-through overlay mesh); parts not named take
+        ``colour``.
         ``background``: an ``(height, width, 3)`` uint8 image drawn behind the mesh (an overlay).
         With ``depth=True`` also returns ``(height, width)`` float64 distances along the camera's
         viewing axis (inf where no surface is seen): ``(image, depth)``.
@@ -155,9 +159,22 @@ class Renderer:
             resources.append(image)
             image.use(1)
             program["image"].value = 1
-        array = ctx.vertex_array(program, [(vbo, "3f 2f", "position", "uv")], ibo)
-        resources.append(array)
-        array.render(moderngl.TRIANGLES)
+        groups = [(split.triangles, colour)]
+        if part_colours and mesh.parts is not None and not textured:
+            groups = []
+            for index, name in enumerate(mesh.part_names):
+                chosen = split.triangles[mesh.parts == index]
+                rgb = part_colours.get(name, colour)
+                if len(chosen) and rgb is not None:
+                    groups.append((chosen, rgb))
+        for triangles, rgb in groups:
+            part_ibo = ibo if triangles is split.triangles else ctx.buffer(triangles.astype("i4").tobytes())
+            if part_ibo is not ibo:
+                resources.append(part_ibo)
+            program["colour"].value = tuple(np.asarray(rgb, dtype=np.float64) / 255.0)
+            array = ctx.vertex_array(program, [(vbo, "3f 2f", "position", "uv")], part_ibo)
+            resources.append(array)
+            array.render(moderngl.TRIANGLES)
         if mode == "wireframe":
             self._edge_program["clip_from_world"].write(clip.T.tobytes())
             edges = ctx.vertex_array(self._edge_program, [(vbo, "3f 8x", "position")], ibo)
