@@ -40,6 +40,10 @@ class IctModel:
     def identity(self, weights) -> np.ndarray:
         return self.neutral + np.tensordot(weights, self.identity_deltas, axes=1)
 
+    def random_identities(self, rng, count: int = 2, spread: float = 1.5) -> list[np.ndarray]:
+        """``count`` faces with identity weights drawn from N(0, spread^2), in order from ``rng``."""
+        return [self.identity(rng.normal(scale=spread, size=len(self.identity_deltas))) for _ in range(count)]
+
     def mesh(self, vertices) -> Mesh:
         tris = [(p[0], p[k], p[k + 1]) for p in self.polygons for k in range(1, len(p) - 1)]
         return Mesh(vertices, np.asarray(tris))

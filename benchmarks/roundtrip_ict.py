@@ -64,8 +64,7 @@ def main(argv=None) -> int:
 
     rng = np.random.default_rng(args.seed)
     model = load_ict()
-    A = model.identity(rng.normal(scale=1.5, size=len(model.identity_deltas)))
-    B = model.identity(rng.normal(scale=1.5, size=len(model.identity_deltas)))
+    A, B = model.random_identities(rng)
     weights = script(model)
     deltas = np.einsum("te,evc->tvc", weights, model.expression_deltas)
     labelled = read_mesh(ICT / "obj" / "generic_neutral_mesh.obj")  # its materials label the parts

@@ -49,8 +49,7 @@ def main(argv=None) -> int:
 
     rng = np.random.default_rng(args.seed)
     model = load_ict()
-    A = model.identity(rng.normal(scale=1.5, size=len(model.identity_deltas)))
-    B = model.identity(rng.normal(scale=1.5, size=len(model.identity_deltas)))
+    A, B = model.random_identities(rng)
     target = remade_face(model, B, rng)
     source = model.mesh(A)
     rest = target.mesh.vertices
