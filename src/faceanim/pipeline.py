@@ -95,9 +95,10 @@ def track(video, output, *, overlay=None, csv=None, options=None, progress=None,
     """``faceanim track``: track the face through ``video``; write the Track (``.npz``), and optionally
     an overlay video and a CSV of landmark pixels. Returns the Track."""
     from .capture.headframe import head_frame
-    from .capture.overlay import write_overlay
+    from .capture.overlay import overlay_frames
     from .capture.track import track_video
     from .capture.tracker import TrackerOptions
+    from .render.video import video_writer
 
     output = Path(output)
     if output.suffix != ".npz":
@@ -106,7 +107,9 @@ def track(video, output, *, overlay=None, csv=None, options=None, progress=None,
     result.save(output)
     if overlay is not None:
         _, pose = head_frame(result)
-        write_overlay(result, pose, overlay)
+        with video_writer(overlay, result.fps, result.width, result.height) as write:
+            for frame in overlay_frames(result, pose):
+                write(frame)
     if csv is not None:
         _write_landmark_csv(result, csv)
     return result

@@ -1,4 +1,6 @@
-"""An overlay video: the source frames with the control points and the head's axes drawn on them."""
+"""Overlay frames: the source frames with the control points and the head's axes drawn on them.
+
+Writing them to a file is the pipeline's job (``faceanim.render.video``); capture only draws."""
 
 from __future__ import annotations
 
@@ -9,7 +11,7 @@ from .metric import Camera
 from .track import Track
 from .video import open_frames
 
-__all__ = ["write_overlay"]
+__all__ = ["overlay_frames"]
 
 _FEATURE_INDICES = np.array(sorted(set(FEATURE_POINT_LANDMARK.values())))
 
@@ -50,12 +52,3 @@ def overlay_frames(track: Track, pose: np.ndarray, *, camera: Camera | None = No
             else:
                 draw.text((8, 8), "no face", fill=(255, 0, 0))
             yield np.asarray(image)
-
-
-def write_overlay(track: Track, pose: np.ndarray, output, *, camera: Camera | None = None) -> None:
-    """Write ``output`` (mp4, H.264): the source with its landmarks and head axes (:func:`overlay_frames`)."""
-    from ..render.video import video_writer
-
-    with video_writer(output, track.fps, track.width, track.height) as write:
-        for frame in overlay_frames(track, pose, camera=camera):
-            write(frame)

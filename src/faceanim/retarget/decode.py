@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.animation import Animation
+from ..motion import JAW_CARRIED
 from ..mpeg4 import ANGLE_UNIT, fap_table, feature_points
 from ..mpeg4.fapstream import FapStream
 from .target import Target
@@ -12,8 +13,6 @@ from .transfer import SparseTransfer
 
 __all__ = ["fap_displacements", "animate_faps", "held"]
 
-# Lower-lip and chin points ride with the jaw: open_jaw (moving 2.1) moves them too (as in encoding).
-_JAW_CARRIED = ("2.3", "2.8", "2.9", "2.10", "8.2", "8.7", "8.8")
 
 
 def held(stream: FapStream) -> np.ndarray:
@@ -42,7 +41,7 @@ def fap_displacements(stream: FapStream, target: Target) -> tuple[tuple[str, ...
         moved[points[0]] = moved.get(points[0], 0.0) + step
     if "2.1" in moved:
         jaw = _jaw_swing(target, values[:, table.number("open_jaw") - 1] * scale[table.number("open_jaw") - 1])
-        for name in ("2.1",) + _JAW_CARRIED:
+        for name in ("2.1", *sorted(JAW_CARRIED)):  # the points encoding measured relative to the jaw
             if name in target.points:
                 others = moved.get(name, 0.0) - (values[:, 2:3] * scale[2] * table.direction[2] if name == "2.1" else 0)
                 moved[name] = others + jaw(target.mesh.vertices[target.points[name]])
