@@ -58,3 +58,16 @@ def test_animate_a_video_onto_ict(tmp_path):
     with av.open(str(tmp_path / "d0.mp4")) as container:
         first = next(container.decode(video=0))
         assert first.width == 2 * first.height  # the source beside the target
+
+
+def test_pipeline_argument_errors(tmp_path):
+    from faceanim import pipeline
+    from faceanim.errors import InputError
+
+    mesh = shared("ict_facekit", "obj", "generic_neutral_mesh.obj")
+    with pytest.raises(InputError, match="give the control points once: --points or --fdp, not both"):
+        pipeline.load_target(mesh, points=tmp_path / "p.json", fdp=tmp_path / "f.fdp")
+    video = shared("videos", "d0.mp4")
+    with pytest.raises(InputError, match="animate takes the neutral as FRAME or START:END"):
+        pipeline.animate(video, tmp_path / "a.glb", target_mesh=mesh, neutral="face.png", progress=False)
+    assert not (tmp_path / "a.glb").exists()

@@ -159,3 +159,18 @@ def test_short_gaps_are_filled_and_flagged_long_ones_reported(tmp_path):
     (tmp_path / "bad.npz").write_bytes(b"not a track")
     with pytest.raises(InputError, match="bad.npz: is not a faceanim track"):
         Track.load(tmp_path / "bad.npz")
+
+
+def test_option_bundles_reject_bad_settings():
+    from faceanim.capture.tracker import TrackerOptions
+
+    with pytest.raises(ValueError, match="min_cutoff must be positive, got 0"):
+        OneEuro(min_cutoff=0)
+    with pytest.raises(ValueError, match="beta must be positive, got -1"):
+        OneEuro(beta=-1)
+    with pytest.raises(ValueError, match="start_face must be one of largest, left, right, got 'middle'"):
+        TrackerOptions(start_face="middle")
+    with pytest.raises(ValueError, match="max_faces must be at least 1, got 0"):
+        TrackerOptions(max_faces=0)
+    with pytest.raises(KeyError, match="unknown FAPU 'XYZ'"):
+        Fapu(1, 1, 1, 1, 1).unit("XYZ")

@@ -94,3 +94,14 @@ def test_morph_errors():
         MorphSet(np.zeros((2, 4, 3)), ("a",))
     with pytest.raises(ValueError, match=r"weights must have shape \(T, 2\)"):
         MorphSet(np.zeros((2, 4, 3)), ("a", "b"), weights=np.zeros((5, 3)))
+
+
+def test_animation_and_export_errors(tmp_path):
+    mesh = grid_mesh(3)
+    with pytest.raises(ValueError, match=r"positions must have shape \(T, 9, 3\)"):
+        Animation(mesh, np.zeros((2, 4, 3)), 25.0)
+    with pytest.raises(ValueError, match="fps must be positive, got 0"):
+        Animation(mesh, np.zeros((2, 9, 3)), 0)
+    with pytest.raises(ValueError, match="morph targets have 4 vertices, the mesh 9"):
+        write_glb(tmp_path / "x.glb", mesh, MorphSet(np.zeros((1, 4, 3)), ("a",)))
+    assert not (tmp_path / "x.glb").exists()

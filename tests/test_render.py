@@ -87,3 +87,34 @@ def test_part_colours_and_hidden_parts(renderer):
     assert image[32, 30, 2] > image[32, 30, 0] and image[32, 66, 0] > image[32, 66, 2]  # blue left, red right
     hidden = renderer.render(both, camera, part_colours={"skin": (0, 0, 255), "overlay": None})
     assert hidden[32, 66].tolist() == [255, 255, 255]  # the overlay part is not drawn
+
+
+def test_unproject_inverts_project():
+    camera = Camera(look_at([0.3, 0.2, 5], [0, 0, 0]), 35.0, 96, 64)
+    points = np.random.default_rng(0).normal(size=(20, 3))
+    distance = -(np.c_[points, np.ones(20)] @ camera.world_to_camera.T)[:, 2]
+    np.testing.assert_allclose(camera.unproject(camera.project(points), distance), points, atol=1e-12)
+
+
+def test_bad_background_and_video_left_half_written(renderer, tmp_path):
+    square = blob((0, 0, 0))
+    with pytest.raises(ValueError, match=r"background must be a \(64, 96, 3\) uint8 image, got \(10, 10, 3\)"):
+        renderer.render(square, front_camera(square.vertices, 96, 64), background=np.zeros((10, 10, 3), np.uint8))
+    pytest.importorskip("av", reason="video needs faceanim[capture]")
+    from faceanim.render.video import video_writer
+
+    with pytest.raises(RuntimeError, match="stopped"):
+        with video_writer(tmp_path / "v.mp4", 25, 32, 32) as write:
+            write(np.zeros((32, 32, 3), np.uint8))
+            raise RuntimeError("stopped")
+    assert list(tmp_path.iterdir()) == []  # nothing half-written
+
+
+def test_letterbox_keeps_the_whole_frame():
+    from faceanim.pipeline import _letterbox
+
+    wide = np.full((360, 640, 3), 200, np.uint8)
+    boxed = _letterbox(wide, 480)
+    lit_rows = np.flatnonzero(boxed[:, 240, 0])
+    assert boxed.shape == (480, 480, 3) and (boxed[240, [0, 479], 0] == 200).all()  # full width kept
+    assert lit_rows.min() == 105 and lit_rows.max() == 374  # 270 rows, centred

@@ -236,10 +236,21 @@ def _write_glb(path, animation) -> None:
     write_glb(path, animation.mesh, morphs_from_animation(animation))
 
 
-def _preview(path, animation, target, *, source_frames=None, size: int = 480) -> None:
-    """Render the animated target (textured when it has a texture), beside the source frames if given."""
+def _letterbox(image: np.ndarray, size: int) -> np.ndarray:
+    """``image`` scaled to fit a black ``size`` x ``size`` square, centred, nothing cut off."""
     from PIL import Image
 
+    h, w = image.shape[:2]
+    scale = size / max(h, w)
+    fitted = np.asarray(Image.fromarray(image).resize((max(1, round(w * scale)), max(1, round(h * scale)))))
+    canvas = np.zeros((size, size, 3), np.uint8)
+    top, left = (size - fitted.shape[0]) // 2, (size - fitted.shape[1]) // 2
+    canvas[top:top + fitted.shape[0], left:left + fitted.shape[1]] = fitted
+    return canvas
+
+
+def _preview(path, animation, target, *, source_frames=None, size: int = 480) -> None:
+    """Render the animated target (textured when it has a texture), beside the source frames if given."""
     from .render.camera import front_camera
     from .render.rasterizer import Renderer
     from .render.video import video_writer
@@ -254,13 +265,7 @@ def _preview(path, animation, target, *, source_frames=None, size: int = 480) ->
             frame = renderer.render(animation.mesh, camera, positions=positions, mode=mode)
             if source is not None:
                 left = next(source, None)
-                left = np.zeros_like(frame) if left is None else left
-                scale = size / left.shape[0]
-                left = np.asarray(Image.fromarray(left).resize((size, size) if abs(left.shape[1] * scale - size) < 2
-                                                                else (round(left.shape[1] * scale), size)))
-                canvas = np.zeros((size, size, 3), np.uint8)
-                w = min(size, left.shape[1])
-                canvas[:, (size - w) // 2:(size - w) // 2 + w] = left[:, :w]
+                canvas = np.zeros_like(frame) if left is None else _letterbox(left, size)
                 frame = np.hstack([canvas, frame])
             write(frame)
 
@@ -283,7 +288,8 @@ def decode(fap_path, output, *, target_mesh, points=None, fdp=None, preview=None
 def animate(video, output, *, target_mesh, points=None, fdp=None, preview=None, fap=None, head_motion=False,
             progress=None, neutral=None):
     """``faceanim animate``: a video of a face drives a target mesh, through MPEG-4 FAPs."""
-    from .capture.headframe import head_frame
+    from .capture.headframe import head_frame, track_to_motion
+    from .capture.neutral import parse_neutral
     from .capture.overlay import overlay_frames
     from .capture.track import track_video
     from .motion import clip_to_range, motion_to_faps
@@ -291,14 +297,11 @@ def animate(video, output, *, target_mesh, points=None, fdp=None, preview=None, 
     from .retarget.decode import animate_faps
 
     output = _check_output(output)
+    if neutral is not None and not isinstance(parse_neutral(str(neutral), 2**62), tuple):
+        raise InputError("animate takes the neutral as FRAME or START:END")  # said before any work is done
     target = load_target(target_mesh, points=points, fdp=fdp)
-    from .capture.headframe import track_to_motion
-    from .capture.neutral import parse_neutral
-
     recorded = track_video(video, progress=progress)
     window = None if neutral is None else parse_neutral(str(neutral), len(recorded))
-    if window is not None and not isinstance(window, tuple):
-        raise InputError("animate takes the neutral as FRAME or START:END")
     motion = track_to_motion(recorded, neutral=window)
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
     animation = animate_faps(stream, target, head_motion=head_motion)
