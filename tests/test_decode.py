@@ -140,3 +140,14 @@ def test_automatic_placement_refuses_a_mesh_without_a_face():
 
     with pytest.raises(InputError, match="automatic placement found no face on the rendered mesh"):
         auto_target(bumpy_sphere())
+
+
+def test_placement_refuses_an_asymmetric_result():
+    from faceanim.capture.metric import canonical_face
+    from faceanim.retarget.placement import _check_symmetry
+
+    points = canonical_face().vertices.copy()
+    _check_symmetry(points)  # MediaPipe's own face is symmetric: accepted
+    points[[263, 362, 291, 300, 454, 386, 374]] += [1.5, 0, 0]  # the face's left side pushed out
+    with pytest.raises(InputError, match="automatic placement found an asymmetric face"):
+        _check_symmetry(points)
