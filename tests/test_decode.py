@@ -148,6 +148,6 @@ def test_placement_refuses_an_asymmetric_result():
 
     points = canonical_face().vertices.copy()
     _check_symmetry(points)  # MediaPipe's own face is symmetric: accepted
-    points[[263, 362, 291, 300, 454, 386, 374]] += [1.5, 0, 0]  # the face's left side pushed out
+    points[[263, 362, 291, 300, 454, 386, 374]] += [2.5, 0, 0]  # the face's left side pushed out
     with pytest.raises(InputError, match="automatic placement found an asymmetric face"):
         _check_symmetry(points)
