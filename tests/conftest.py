@@ -1,3 +1,6 @@
+import json
+import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -29,3 +32,12 @@ def grid_mesh(n=6, size=1.0):
             a = i * n + j
             tris += [(a, a + 1, a + n + 1), (a, a + n + 1, a + n)]
     return Mesh(v, np.array(tris))
+
+
+def khronos_report(path) -> dict:
+    """The Khronos glTF validator's report on ``path``, or skip where Node.js or the validator is missing."""
+    if shutil.which("node") is None or not (ROOT / "tools" / "node" / "node_modules" / "gltf-validator").exists():
+        pytest.skip("needs Node.js and the glTF validator (scripts/setup.sh installs it into tools/node)")
+    out = subprocess.run(["node", str(ROOT / "tools" / "validate_gltf.js"), str(path)], capture_output=True,
+                         text=True, check=True)
+    return json.loads(out.stdout)

@@ -1,26 +1,12 @@
-import json
-import shutil
-import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import grid_mesh
+from conftest import grid_mesh, khronos_report
 
 from faceanim.export import MorphSet, morphs_from_animation, write_glb
-from faceanim.export.gltf import _json_chunk
 from faceanim.geometry import Mesh, read_mesh
 from faceanim.geometry.animation import Animation
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def khronos_report(path) -> dict:
-    if shutil.which("node") is None or not (ROOT / "tools" / "node" / "node_modules" / "gltf-validator").exists():
-        pytest.skip("needs Node.js and the glTF validator (scripts/setup.sh installs it into tools/node)")
-    out = subprocess.run(["node", str(ROOT / "tools" / "validate_gltf.js"), str(path)], capture_output=True,
-                         text=True, check=True)
-    return json.loads(out.stdout)
+from faceanim.geometry.meshio import read_glb_json
 
 
 def animated_grid(frames=30):
@@ -81,7 +67,7 @@ def test_textured_mesh_with_seams_and_named_sliders(tmp_path):
     lift[2, 2] = 1.0
     sliders = MorphSet(np.stack([lift, -lift]), ("AU01", "AU02"))
     write_glb(tmp_path / "s.glb", mesh, sliders)
-    meta = _json_chunk(tmp_path / "s.glb")
+    meta = read_glb_json(tmp_path / "s.glb")
     assert meta["meshes"][0]["extras"]["targetNames"] == ["AU01", "AU02"] and "animations" not in meta
     report = khronos_report(tmp_path / "s.glb")
     assert report["errors"] == 0 and report["warnings"] == 0, report["messages"]

@@ -57,7 +57,8 @@ def _parser() -> argparse.ArgumentParser:
         p = commands.add_parser(name, help=help_text, description=help_text[0].upper() + help_text[1:] + (
             "; the result is a glTF binary with morph targets and an animation."))
         p.add_argument("source", metavar=source)
-        p.add_argument("--target", required=True, metavar="MESH", help="the face to animate (.obj, .glb, .ply)")
+        p.add_argument("--target", metavar="MESH",
+                       help="the face to animate (.obj, .glb, .ply; default: the avatar of the embedded portrait)")
         p.add_argument("-o", "--output", required=True, metavar="OUT.glb")
         group = p.add_mutually_exclusive_group()
         group.add_argument("--points", metavar="POINTS.json",
@@ -67,6 +68,22 @@ def _parser() -> argparse.ArgumentParser:
         p.add_argument("--head-motion", action="store_true", help="turn the head as the FAPs (48-50) say")
         if name == "animate":
             p.add_argument("--fap", metavar="OUT.fap", help="also write the FAPs that drive it")
+
+    p = commands.add_parser("avatar", help="a textured 3D face from a portrait",
+                            description="Make an animatable 3D face from a portrait photo: the tracker's face "
+                                        "mesh, smoothly subdivided, textured from the photo, eyes and mouth open. "
+                                        "The .glb carries its control points, so animate and decode take it as "
+                                        "--target without placement.")
+    p.add_argument("photo", metavar="PHOTO", help="an image (or a video, whose first frame is used)")
+    p.add_argument("-o", "--output", required=True, metavar="FACE.glb")
+
+    p = commands.add_parser("demo", help="run the whole chain on embedded material (no downloads)",
+                            description="Make a 3D avatar from the astronaut portrait scikit-image ships, film it "
+                                        "performing a scripted expression sequence (the photo warped by RBF), then "
+                                        "track, encode and retarget that video like any other. Writes demo.glb, "
+                                        "preview.mp4, demo.fap, performance.mp4 and report.html.")
+    p.add_argument("-o", "--output", default="faceanim-demo", metavar="DIR",
+                   help="folder for the outputs (default: ./faceanim-demo)")
 
     p = commands.add_parser("fap-info", help="summarise a .fap file",
                             description="Frames, fps, active FAPs with their ranges, and values outside MPEG-4's.")
@@ -109,6 +126,20 @@ def main(argv=None) -> int:
                                             head_motion=args.head_motion)
             print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
                                                                        else ""))
+        elif args.command == "avatar":
+            target = pipeline.avatar(args.photo, args.output)
+            print(f"wrote {args.output}: {len(target.mesh.vertices)} vertices, {len(target.points)} control points")
+        elif args.command == "demo":
+            from .demo import run_demo
+
+            result = run_demo(args.output)
+            total = sum(seconds for _, seconds in result.steps)
+            for what, seconds in result.steps:
+                print(f"{seconds:6.1f} s  {what}")
+            print(f"done in {total:.1f} s; outputs in {result.folder}/:")
+            for path in result.outputs.values():
+                print(f"  {path}")
+            print(f"open {result.outputs['report.html']} in a browser")
         elif args.command == "fap-info":
             print(pipeline.fap_info(args.fap))
     except (InputError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:

@@ -13,7 +13,9 @@ from .errors import FileFormatError, InputError
 from .geometry import read_mesh, write_mesh
 from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
 
-__all__ = ["transfer", "read_pairs", "track", "encode", "fap_info", "load_target", "decode", "animate"]
+__all__ = ["transfer", "read_pairs", "track", "encode", "fap_info", "portrait", "portrait_landmarks",
+           "avatar_target", "avatar",
+           "load_target", "decode", "animate"]
 
 
 def read_pairs(path) -> tuple[np.ndarray, np.ndarray]:
@@ -205,19 +207,81 @@ def fap_info(path) -> str:
 # ---- animating a target: FAPs or a video -> Animation -> glTF (and a preview video)
 
 
-def load_target(mesh_path, *, points=None, fdp=None):
-    """A Target from a mesh file and its control points: a JSON file, an Xface ``.fdp``, or, with
-    neither, automatic placement (render, track, cast back)."""
+def portrait(photo=None) -> tuple[np.ndarray, str]:
+    """An RGB portrait and its name: the image file ``photo`` (the first frame of a video), or, with
+    None, the public-domain astronaut portrait (Eileen Collins, NASA) that scikit-image ships."""
+    if photo is None:
+        try:
+            from skimage import data
+        except ImportError:
+            raise ImportError("the embedded portrait comes with scikit-image: pip install 'faceanim[capture]'") \
+                from None
+        return data.astronaut(), "astronaut"
+    from .capture.video import open_frames
+
+    with open_frames(photo) as frames:
+        for _, frame in frames:
+            return frame, Path(photo).stem
+    raise InputError(f"{photo}: holds no frames")
+
+
+def portrait_landmarks(image: np.ndarray, name: str) -> np.ndarray:
+    """The tracker's ``(478, 3)`` landmarks of the (largest) face in a portrait."""
+    from .capture.tracker import FaceTracker, TrackerOptions
+
+    with FaceTracker(TrackerOptions(static=True)) as tracker:
+        landmarks = tracker(image)
+    if landmarks is None:
+        raise InputError(f"{name}: the face tracker finds no face in it")
+    return landmarks
+
+
+def avatar_target(photo=None, *, image=None, landmarks=None, subdivisions: int = 2):
+    """A Target made from a portrait (see :func:`portrait`): the tracker's face mesh, textured from it.
+    ``image`` (and its ``landmarks``, when already tracked) stand in for a file."""
+    from .capture.avatar import avatar_points, face_from_landmarks
+    from .retarget.target import Target
+
+    image, name = (image, "image") if image is not None else portrait(photo)
+    if landmarks is None:
+        landmarks = portrait_landmarks(image, str(photo) if photo is not None else name)
+    mesh = face_from_landmarks(landmarks, image, subdivisions=subdivisions)
+    return Target.from_points(mesh, avatar_points(mesh), source=name)
+
+
+def avatar(photo, output):
+    """``faceanim avatar``: a textured 3D face from a portrait, written as a ``.glb`` that carries its
+    control points (so it animates without placement). Returns the Target."""
+    from .export import write_glb
+
+    output = _check_output(output)
+    target = avatar_target(photo)
+    write_glb(output, target.mesh, extras={"points": target.points})
+    return target
+
+
+def load_target(mesh_path=None, *, points=None, fdp=None):
+    """A Target from a mesh file and its control points, taken from, in order: a JSON file, an Xface
+    ``.fdp``, the points a faceanim ``.glb`` carries, automatic placement (render, track, cast back).
+    With no mesh, the avatar of the embedded portrait (see :func:`avatar_target`)."""
+    from .geometry.meshio import glb_extras
     from .retarget.placement import auto_target
-    from .retarget.target import target_from_fdp, target_from_json
+    from .retarget.target import Target, target_from_fdp, target_from_json
 
     if points is not None and fdp is not None:
         raise InputError("give the control points once: --points or --fdp, not both")
+    if mesh_path is None:
+        if points is not None or fdp is not None:
+            raise InputError("--points and --fdp describe a --target mesh; give the mesh too")
+        return avatar_target()
     mesh = read_mesh(mesh_path)
     if points is not None:
         return target_from_json(mesh, points)
     if fdp is not None:
         return target_from_fdp(mesh, fdp)
+    carried = glb_extras(mesh_path).get("points")
+    if isinstance(carried, dict):
+        return Target.from_points(mesh, carried, source=str(mesh_path))
     return auto_target(mesh)
 
 
@@ -256,7 +320,7 @@ def _preview(path, animation, target, *, source_frames=None, size: int = 480) ->
     from .render.video import video_writer
 
     face = animation.mesh.vertices[target.ids(list(target.points))]
-    camera = front_camera(face, size, size, vertical_fov=20.0, margin=1.5)
+    camera = front_camera(face, size, size, vertical_fov=20.0, margin=1.25)
     mode = "textured" if animation.mesh.texture is not None else "shaded"
     width = size * (2 if source_frames is not None else 1)
     source = iter(source_frames) if source_frames is not None else None
@@ -270,14 +334,16 @@ def _preview(path, animation, target, *, source_frames=None, size: int = 480) ->
             write(frame)
 
 
-def decode(fap_path, output, *, target_mesh, points=None, fdp=None, preview=None, head_motion=False):
-    """``faceanim decode``: a ``.fap`` file onto a target mesh, written as an animated ``.glb``."""
+def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview=None, head_motion=False,
+           target=None):
+    """``faceanim decode``: a ``.fap`` file onto a target mesh, written as an animated ``.glb``.
+    ``target``, a ready :class:`~faceanim.retarget.Target`, stands in for the mesh and its points."""
     from .mpeg4.fapfile import read_fap
     from .retarget.decode import animate_faps
 
     output = _check_output(output)
     stream = read_fap(fap_path)
-    target = load_target(target_mesh, points=points, fdp=fdp)
+    target = target or load_target(target_mesh, points=points, fdp=fdp)
     animation = animate_faps(stream, target, head_motion=head_motion)
     _write_glb(output, animation)
     if preview is not None:
@@ -285,9 +351,10 @@ def decode(fap_path, output, *, target_mesh, points=None, fdp=None, preview=None
     return animation
 
 
-def animate(video, output, *, target_mesh, points=None, fdp=None, preview=None, fap=None, head_motion=False,
-            progress=None, neutral=None):
-    """``faceanim animate``: a video of a face drives a target mesh, through MPEG-4 FAPs."""
+def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=None, fap=None, head_motion=False,
+            progress=None, neutral=None, target=None):
+    """``faceanim animate``: a video of a face drives a target mesh, through MPEG-4 FAPs. ``target``, a
+    ready :class:`~faceanim.retarget.Target`, stands in for the mesh and its points."""
     from .capture.headframe import head_frame, track_to_motion
     from .capture.neutral import parse_neutral
     from .capture.overlay import overlay_frames
@@ -299,7 +366,7 @@ def animate(video, output, *, target_mesh, points=None, fdp=None, preview=None, 
     output = _check_output(output)
     if neutral is not None and not isinstance(parse_neutral(str(neutral), 2**62), tuple):
         raise InputError("animate takes the neutral as FRAME or START:END")  # said before any work is done
-    target = load_target(target_mesh, points=points, fdp=fdp)
+    target = target or load_target(target_mesh, points=points, fdp=fdp)
     recorded = track_video(video, progress=progress)
     window = None if neutral is None else parse_neutral(str(neutral), len(recorded))
     motion = track_to_motion(recorded, neutral=window)

@@ -10,7 +10,6 @@ directly for a viewer to drive as sliders.
 from __future__ import annotations
 
 import io
-import json
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -18,6 +17,7 @@ import numpy as np
 from ..atomic import atomic_output
 from ..geometry.animation import Animation
 from ..geometry.mesh import Mesh
+from ..geometry.meshio import SOURCE_VERTEX_ATTRIBUTE
 from ..validation import as_array
 
 __all__ = ["MorphSet", "morphs_from_animation", "write_glb"]
@@ -114,11 +114,14 @@ class _Buffer:
         return len(self.gltf.bufferViews) - 1
 
 
-def write_glb(path, mesh: Mesh, morphs: MorphSet | None = None, *, name: str = "face") -> None:
+def write_glb(path, mesh: Mesh, morphs: MorphSet | None = None, *, name: str = "face",
+              extras: dict | None = None) -> None:
     """Write ``mesh`` (with its texture, and ``morphs`` if given) as a ``.glb``, complete or not at all.
 
     UV seams are split (glTF has one UV per vertex); every split copy carries its original vertex's
-    morph displacement, so seams never open.
+    morph displacement, so seams never open, and its original index in the attribute
+    ``_SOURCE_VERTEX``, so :func:`~faceanim.geometry.read_mesh` restores the mesh exactly. ``extras``
+    (JSON-able) is stored in the glTF mesh's ``extras`` under ``"faceanim"``.
     """
     try:
         import pygltflib as g
@@ -133,6 +136,8 @@ def write_glb(path, mesh: Mesh, morphs: MorphSet | None = None, *, name: str = "
     attributes = g.Attributes(
         POSITION=buffer.add(split.vertices, kind="VEC3", component=_FLOAT, target=_ARRAY_BUFFER, with_bounds=True),
         NORMAL=buffer.add(normals, kind="VEC3", component=_FLOAT, target=_ARRAY_BUFFER))
+    setattr(attributes, SOURCE_VERTEX_ATTRIBUTE, buffer.add(split.source_vertex.astype(np.float32), kind="SCALAR",
+                                                      component=_FLOAT, target=_ARRAY_BUFFER))
     if split.uv is not None:
         uv = split.uv * [1, -1] + [0, 1]  # glTF's UV origin is the image's top left
         attributes.TEXCOORD_0 = buffer.add(uv, kind="VEC2", component=_FLOAT, target=_ARRAY_BUFFER)
@@ -151,7 +156,7 @@ def write_glb(path, mesh: Mesh, morphs: MorphSet | None = None, *, name: str = "
         gltf.textures.append(g.Texture(source=0, sampler=0))
         material.pbrMetallicRoughness.baseColorTexture = g.TextureInfo(index=0)
     gltf.materials.append(material)
-    gltf_mesh = g.Mesh(name=name, primitives=[primitive])
+    gltf_mesh = g.Mesh(name=name, primitives=[primitive], extras={"faceanim": extras} if extras else {})
     if morphs is not None and len(morphs.names):
         if morphs.targets.shape[1] != len(mesh.vertices):
             raise ValueError(f"morph targets have {morphs.targets.shape[1]} vertices, the mesh {len(mesh.vertices)}")
@@ -160,7 +165,7 @@ def write_glb(path, mesh: Mesh, morphs: MorphSet | None = None, *, name: str = "
                                   with_bounds=True)
             primitive.targets.append({"POSITION": accessor})
         gltf_mesh.weights = [0.0] * len(morphs.names)
-        gltf_mesh.extras = {"targetNames": list(morphs.names)}
+        gltf_mesh.extras["targetNames"] = list(morphs.names)
     gltf.meshes.append(gltf_mesh)
     gltf.nodes.append(g.Node(mesh=0, name=name))
     gltf.scenes.append(g.Scene(nodes=[0]))
@@ -176,10 +181,3 @@ def write_glb(path, mesh: Mesh, morphs: MorphSet | None = None, *, name: str = "
     gltf.set_binary_blob(blob)
     with atomic_output(path, suffix=".glb") as tmp:
         gltf.save_binary(str(tmp))
-
-
-def _json_chunk(path) -> dict:
-    """The JSON part of a ``.glb`` (for tests and tools)."""
-    data = open(path, "rb").read()
-    length = int.from_bytes(data[12:16], "little")
-    return json.loads(data[20:20 + length])

@@ -18,9 +18,9 @@ from ..errors import FileFormatError, InputError
 from .mesh import Mesh
 from .obj import read_obj, write_obj
 
-__all__ = ["read_mesh", "write_mesh", "MESH_SUFFIXES"]
+__all__ = ["read_mesh", "write_mesh", "read_glb_json", "glb_extras", "MESH_SUFFIXES", "SOURCE_VERTEX_ATTRIBUTE"]
 
-_SOURCE_ATTRIBUTE = "_SOURCE_VERTEX"
+SOURCE_VERTEX_ATTRIBUTE = "_SOURCE_VERTEX"
 
 
 def _suffix(path: Path) -> str:
@@ -55,7 +55,7 @@ def _read_with_trimesh(path: Path) -> Mesh:
             getattr(visual, "material", None), "image", None)
         if image is not None:
             texture = np.asarray(image.convert("RGB"))
-    source = loaded.vertex_attributes.get(_SOURCE_ATTRIBUTE) if hasattr(loaded, "vertex_attributes") else None
+    source = loaded.vertex_attributes.get(SOURCE_VERTEX_ATTRIBUTE) if hasattr(loaded, "vertex_attributes") else None
     if source is not None and len(source) == len(vertices):
         return _weld(path, vertices, triangles, uv, texture, np.asarray(source).ravel())
     return Mesh(vertices, triangles, uv=uv, texture=texture)
@@ -66,7 +66,7 @@ def _weld(path, vertices, triangles, uv, texture, source) -> Mesh:
     source = np.rint(source).astype(np.int64)
     count = int(source.max()) + 1
     if source.min() < 0 or len(np.unique(source)) != count:
-        raise FileFormatError(path, f"attribute {_SOURCE_ATTRIBUTE} is not a valid vertex map")
+        raise FileFormatError(path, f"attribute {SOURCE_VERTEX_ATTRIBUTE} is not a valid vertex map")
     welded = np.zeros((count, 3))
     welded[source] = vertices
     return Mesh(welded, source[triangles], uv=uv, uv_triangles=triangles if uv is not None else None,
@@ -89,7 +89,7 @@ def _write_with_trimesh(path: Path, mesh: Mesh, file_type: str) -> None:
         visual = trimesh.visual.TextureVisuals(uv=split.uv, material=material)
     tm = trimesh.Trimesh(split.vertices, split.triangles, visual=visual, process=False)
     if file_type == "glb":
-        tm.vertex_attributes[_SOURCE_ATTRIBUTE] = split.source_vertex.astype(np.float32)
+        tm.vertex_attributes[SOURCE_VERTEX_ATTRIBUTE] = split.source_vertex.astype(np.float32)
     data = tm.export(file_type=file_type)
     with atomic_output(path) as tmp:
         tmp.write_bytes(data if isinstance(data, bytes) else data.encode())
@@ -144,3 +144,31 @@ def write_mesh(path, mesh: Mesh) -> None:
         choices = ", ".join(sorted(_WRITERS))
         raise InputError(f"{path}: cannot write mesh format {_suffix(path)!r}; use one of {choices}")
     writer(path, mesh)
+
+
+def read_glb_json(path) -> dict:
+    """The JSON chunk of a ``.glb`` file (its scene description, without the binary buffer)."""
+    path = Path(path)
+    with open(path, "rb") as handle:
+        header = handle.read(20)
+        if len(header) < 20 or header[:4] != b"glTF" or header[16:20] != b"JSON":
+            raise FileFormatError(path, "is not a binary glTF (.glb) file")
+        length = int.from_bytes(header[12:16], "little")
+        try:
+            import json
+
+            return json.loads(handle.read(length))
+        except ValueError as exc:
+            raise FileFormatError(path, f"has a broken JSON chunk ({exc})") from None
+
+
+def glb_extras(path) -> dict:
+    """What faceanim stored in a ``.glb`` (the first mesh's ``extras["faceanim"]``); ``{}`` for other
+    files and formats."""
+    path = Path(path)
+    if _suffix(path) != ".glb":
+        return {}
+    meshes = read_glb_json(path).get("meshes") or [{}]
+    extras = meshes[0].get("extras") or {}
+    found = extras.get("faceanim") if isinstance(extras, dict) else None
+    return found if isinstance(found, dict) else {}

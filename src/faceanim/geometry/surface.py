@@ -18,12 +18,12 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import sparse
-from scipy.sparse import csgraph
 from scipy.sparse.linalg import splu
 
 from ..validation import as_index_array
 from .mesh import Mesh
 from .rbf import apply_operator, rbf_operator_from_distances
+from .topology import component_labels
 
 __all__ = ["edge_graph", "geodesic_distances", "cotangent_laplacian", "BiharmonicInterpolation", "SurfaceRbf"]
 
@@ -60,7 +60,7 @@ def geodesic_distances(mesh: Mesh, sources) -> np.ndarray:
 
         solver = potpourri3d.MeshHeatMethodDistanceSolver(mesh.vertices, mesh.triangles)
         mesh.__dict__["_heat_solver"] = solver
-    _, part = csgraph.connected_components(edge_graph(mesh), directed=False)
+    part = component_labels(mesh)
     out = np.stack([solver.compute_distance(int(s)) for s in sources]) if len(sources) else np.zeros((0, len(part)))
     out[part[None, :] != part[sources][:, None]] = np.inf
     return out
@@ -133,7 +133,7 @@ class BiharmonicInterpolation:
         if len(unconstrained):
             raise ValueError(f"{len(unconstrained)} vertices (first: {unconstrained[:5].tolist()}) belong to no "
                              "triangle; remove them before interpolating on the surface")
-        _, part = csgraph.connected_components(edge_graph(mesh), directed=False)
+        part = component_labels(mesh)
         uncovered = np.setdiff1d(np.unique(part), part[ids])
         if len(uncovered):
             first = np.flatnonzero(part == uncovered[0])[:5].tolist()

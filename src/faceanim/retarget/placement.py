@@ -14,6 +14,7 @@ from ..capture.landmarks import FEATURE_POINT_LANDMARK
 from ..errors import InputError
 from ..geometry.mesh import Mesh
 from ..geometry.project import project_points
+from ..geometry.topology import component_labels
 from ..render.camera import front_camera
 from .target import Target, measure_fapu
 
@@ -81,7 +82,7 @@ def place_landmarks(mesh: Mesh, *, size: int = 512, yaws=(0.0, -12.0, 12.0)) -> 
         points = _surface_points(*found, camera)
     # Snap to the part of the mesh (connected component) that most points land on: the skin. Points seen
     # through the eye or mouth openings would otherwise land on eyeballs or teeth.
-    part = _component_labels(mesh)
+    part = component_labels(mesh)
     first = project_points(mesh, points)
     skin = np.bincount(part[first.corner_vertices[:, 0]]).argmax()
     on_skin = part[mesh.triangles[:, 0]] == skin
@@ -89,14 +90,6 @@ def place_landmarks(mesh: Mesh, *, size: int = 512, yaws=(0.0, -12.0, 12.0)) -> 
     ids = hit.corner_vertices[np.arange(len(points)), hit.barycentric.argmax(axis=1)]
     _check_symmetry(mesh.vertices[ids])
     return ids
-
-
-def _component_labels(mesh: Mesh) -> np.ndarray:
-    from scipy.sparse.csgraph import connected_components
-
-    from ..geometry.surface import edge_graph
-
-    return connected_components(edge_graph(mesh), directed=False)[1]
 
 
 def _check_symmetry(points: np.ndarray) -> None:

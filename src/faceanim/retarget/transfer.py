@@ -23,12 +23,12 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
-from scipy.sparse import csgraph
 
 from ..geometry.mesh import Mesh
 from ..geometry.project import project_points
 from ..geometry.rbf import RbfWarp, apply_operator
 from ..geometry.surface import BiharmonicInterpolation, SurfaceRbf
+from ..geometry.topology import component_labels
 from ..validation import as_array, as_index_array
 
 __all__ = ["ControlPairs", "SparseTransfer", "DenseTransfer", "transfer_expression", "METHODS", "METRICS"]
@@ -164,11 +164,8 @@ def _moving_part(mesh: Mesh, vertex_ids: np.ndarray) -> tuple[Mesh, np.ndarray]:
 
 def _components_with(mesh: Mesh, vertex_ids: np.ndarray) -> np.ndarray:
     """Boolean mask of triangles in the connected components that contain any of ``vertex_ids``."""
-    V = len(mesh.vertices)
-    t = mesh.triangles
-    adjacency = sparse.coo_matrix((np.ones(3 * len(t)), (t.ravel(), np.roll(t, 1, axis=1).ravel())), shape=(V, V))
-    _, label = csgraph.connected_components(adjacency, directed=False)
-    return np.isin(label[t[:, 0]], np.unique(label[vertex_ids]))
+    label = component_labels(mesh)
+    return np.isin(label[mesh.triangles[:, 0]], np.unique(label[vertex_ids]))
 
 
 def transfer_expression(source_neutral: Mesh, source_expression: Mesh, target: Mesh, pairs: ControlPairs, *,

@@ -1,0 +1,60 @@
+"""Connectivity of a triangle mesh: its connected parts and the ordered loops of its open boundary."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse import csgraph
+
+from .mesh import Mesh
+
+__all__ = ["component_labels", "boundary_loops"]
+
+
+def component_labels(mesh: Mesh) -> np.ndarray:
+    """``(V,) int64``: the connected part (through triangle edges) each vertex belongs to; cached.
+
+    A vertex in no triangle is a part of its own.
+
+    >>> m = Mesh([[0., 0, 0], [1, 0, 0], [0, 1, 0], [5, 0, 0], [6, 0, 0], [5, 1, 0]], [[0, 1, 2], [3, 4, 5]])
+    >>> component_labels(m).tolist()
+    [0, 0, 0, 1, 1, 1]
+    """
+    labels = mesh.__dict__.get("_component_labels")
+    if labels is None:
+        V, e = len(mesh.vertices), mesh.edges
+        graph = sparse.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(V, V))
+        labels = csgraph.connected_components(graph, directed=False)[1].astype(np.int64)
+        labels.flags.writeable = False
+        mesh.__dict__["_component_labels"] = labels
+    return labels
+
+
+def boundary_loops(triangles) -> list[np.ndarray]:
+    """The open boundary of a triangulation as closed loops of vertex ids, each in the direction the
+    triangles' winding gives it (counter-clockwise around the surface seen from outside), longest first.
+
+    Raises ``ValueError`` where the boundary is not a set of simple loops (a vertex where two holes
+    touch, or a non-manifold edge).
+
+    >>> boundary_loops([[0, 1, 2], [0, 2, 3]])[0].tolist()
+    [0, 1, 2, 3]
+    """
+    t = np.asarray(triangles, dtype=np.int64)
+    directed = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    key = np.sort(directed, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    if counts.max(initial=0) > 2:
+        raise ValueError("the mesh has edges shared by more than two triangles (non-manifold)")
+    open_edges = directed[counts[inverse.ravel()] == 1]
+    if len(np.unique(open_edges[:, 0])) != len(open_edges):
+        raise ValueError("the boundary is not a set of simple loops (two holes meet at a vertex)")
+    following = dict(zip(open_edges[:, 0].tolist(), open_edges[:, 1].tolist(), strict=True))
+    loops = []
+    while following:
+        start = min(following)
+        loop = [start]
+        while (nxt := following.pop(loop[-1])) != start:
+            loop.append(nxt)
+        loops.append(np.array(loop, dtype=np.int64))
+    return sorted(loops, key=len, reverse=True)

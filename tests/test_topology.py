@@ -1,0 +1,42 @@
+import numpy as np
+import pytest
+from conftest import grid_mesh
+
+from faceanim.geometry import Mesh
+from faceanim.geometry.topology import boundary_loops, component_labels
+
+
+def test_boundary_of_a_grid_is_one_counter_clockwise_loop():
+    mesh = grid_mesh(4)
+    (loop,) = boundary_loops(mesh.triangles)
+    assert sorted(loop.tolist()) == [0, 1, 2, 3, 4, 7, 8, 11, 12, 13, 14, 15]
+    p = mesh.vertices[loop, :2]
+    signed_area = 0.5 * np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1])
+    assert signed_area == pytest.approx(1.0)  # counter-clockwise seen from +z, the side the grid faces
+
+
+def test_a_hole_is_a_second_loop_running_the_other_way():
+    mesh = grid_mesh(5)
+    centre = 12  # the middle vertex: removing its six triangles opens a hexagonal hole
+    triangles = mesh.triangles[~np.isin(mesh.triangles, [centre]).any(axis=1)]
+    outline, hole = boundary_loops(triangles)
+    assert len(outline) == 16 and sorted(hole.tolist()) == [6, 7, 11, 13, 17, 18]
+    p = mesh.vertices[hole, :2]
+    assert np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]) < 0
+
+
+def test_boundary_errors_and_closed_surfaces():
+    tetra = [[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]]
+    assert boundary_loops(tetra) == []
+    with pytest.raises(ValueError, match="non-manifold"):
+        boundary_loops([[0, 1, 2], [0, 1, 3], [1, 0, 4]])
+    with pytest.raises(ValueError, match="two holes meet"):  # two fans touching at vertex 0
+        boundary_loops([[0, 1, 2], [0, 3, 4]])
+
+
+def test_component_labels_split_parts_and_are_cached():
+    a = grid_mesh(3)
+    mesh = Mesh(np.vstack([a.vertices, a.vertices + 5]), np.vstack([a.triangles, a.triangles + 9]))
+    labels = component_labels(mesh)
+    assert labels.tolist() == [0] * 9 + [1] * 9
+    assert component_labels(mesh) is labels and not labels.flags.writeable
