@@ -3,9 +3,8 @@
 import json
 
 import pytest
-from conftest import shared
+from conftest import khronos_report, shared
 from test_gltf import decode as decode_glb
-from test_gltf import khronos_report
 
 from faceanim.cli import main
 
@@ -39,7 +38,7 @@ def test_decode_with_a_points_file_and_bad_inputs(tmp_path, capsys):
     (tmp_path / "far.json").write_text(json.dumps({"8.3": 10 ** 6}))
     for args, message in (
             (["--points", str(tmp_path / "far.json"), "-o", str(tmp_path / "b.glb")], "names vertex 1000000"),
-            (["-o", str(tmp_path / "b.obj")], "b.obj: the animation is written as .glb"),
+            (["-o", str(tmp_path / "b.obj")], "b.obj: this output is written as .glb"),
             (["-o", str(tmp_path / "nowhere" / "b.glb")], "does not exist")):
         assert main(["decode", str(joy), "--target", str(mesh), *args]) == 2
         err = capsys.readouterr().err.strip().splitlines()
@@ -71,3 +70,32 @@ def test_pipeline_argument_errors(tmp_path):
     with pytest.raises(InputError, match="animate takes the neutral as FRAME or START:END"):
         pipeline.animate(video, tmp_path / "a.glb", target_mesh=mesh, neutral="face.png", progress=False)
     assert not (tmp_path / "a.glb").exists()
+
+
+def test_decode_onto_the_default_avatar_with_obj_sequence_and_csv(tmp_path, capsys):
+    import numpy as np
+
+    from faceanim.geometry import read_mesh
+    from faceanim.mpeg4.fapfile import read_fap
+
+    joy = shared("xface", "Faps", "joy.fap")
+    frames_dir, csv = tmp_path / "frames", tmp_path / "joy.csv"
+    assert main(["decode", str(joy), "-o", str(tmp_path / "joy.glb"), "--obj-sequence", str(frames_dir),
+                 "--csv", str(csv)]) == 0
+    objs = sorted(frames_dir.glob("*.obj"))
+    assert len(objs) == 108 and (frames_dir / "face.png").exists() and (frames_dir / "face.mtl").exists()
+    first, moved = read_mesh(objs[0]), read_mesh(objs[60])
+    assert first.texture is not None and first.triangles.shape == moved.triangles.shape
+    assert decode_glb(tmp_path / "joy.glb")[0].shape[0] == 108
+    assert np.abs(moved.vertices - first.vertices).max() > 0.1  # the sequence moves
+    stream = read_fap(joy)
+    lines = csv.read_text().splitlines()
+    header = lines[0].split(",")
+    assert len(lines) == 109 and header[:2] == ["frame", "time"] and "12_raise_l_cornerlip" in header
+    column = header.index("12_raise_l_cornerlip")
+    assert [float(r.split(",")[column]) for r in lines[1:]] == pytest.approx(stream.values[:, 11].tolist())
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "keep.txt").write_text("mine")
+    assert main(["decode", str(joy), "-o", str(tmp_path / "b.glb"), "--obj-sequence", str(tmp_path / "full")]) == 2
+    assert "full: exists and is not an empty folder" in capsys.readouterr().err
+    assert not (tmp_path / "b.glb").exists() and (tmp_path / "full" / "keep.txt").read_text() == "mine"

@@ -78,7 +78,7 @@ def test_avatar_bad_input(tmp_path):
     Image.fromarray(np.full((200, 200, 3), 128, np.uint8)).save(blank)
     with pytest.raises(InputError, match="blank.png: the face tracker finds no face in it"):
         pipeline.avatar(blank, tmp_path / "face.glb")
-    with pytest.raises(InputError, match="face.obj: the animation is written as .glb"):
+    with pytest.raises(InputError, match="face.obj: this output is written as .glb"):
         pipeline.avatar(blank, tmp_path / "face.obj")
     assert not (tmp_path / "face.glb").exists()
 

@@ -66,6 +66,8 @@ def _parser() -> argparse.ArgumentParser:
         group.add_argument("--fdp", metavar="FILE.fdp", help="control points and FAPU from an XfaceEd .fdp file")
         p.add_argument("--preview", metavar="PREVIEW.mp4", help="also render the animation to a video")
         p.add_argument("--head-motion", action="store_true", help="turn the head as the FAPs (48-50) say")
+        p.add_argument("--obj-sequence", metavar="DIR", help="also write the animation as numbered OBJ files")
+        p.add_argument("--csv", metavar="FAPS.csv", help="also write the FAP curves as CSV")
         if name == "animate":
             p.add_argument("--fap", metavar="OUT.fap", help="also write the FAPs that drive it")
 
@@ -117,13 +119,15 @@ def main(argv=None) -> int:
             print(f"wrote {args.output}: {len(stream)} frames, {active} FAPs{note}")
         elif args.command == "decode":
             animation = pipeline.decode(args.source, args.output, target_mesh=args.target, points=args.points,
-                                        fdp=args.fdp, preview=args.preview, head_motion=args.head_motion)
+                                        fdp=args.fdp, preview=args.preview, head_motion=args.head_motion,
+                                        obj_sequence=args.obj_sequence, csv=args.csv)
             print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
                                                                        else ""))
         elif args.command == "animate":
             animation, _ = pipeline.animate(args.source, args.output, target_mesh=args.target, points=args.points,
                                             fdp=args.fdp, preview=args.preview, fap=args.fap,
-                                            head_motion=args.head_motion)
+                                            head_motion=args.head_motion, obj_sequence=args.obj_sequence,
+                                            csv=args.csv)
             print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
                                                                        else ""))
         elif args.command == "avatar":

@@ -288,10 +288,31 @@ def load_target(mesh_path=None, *, points=None, fdp=None):
 def _check_output(path, suffixes=(".glb",)) -> Path:
     path = Path(path)
     if path.suffix.lower() not in suffixes:
-        raise InputError(f"{path}: the animation is written as {' or '.join(suffixes)}")
+        raise InputError(f"{path}: this output is written as {' or '.join(suffixes)}")
     if not path.parent.exists():
         raise InputError(f"{path}: the folder {path.parent} does not exist")
     return path
+
+
+def _check_extra_outputs(obj_sequence, csv) -> None:
+    """Refuse unusable extra outputs before any work is done."""
+    if csv is not None:
+        _check_output(csv, (".csv",))
+    if obj_sequence is not None:
+        folder = Path(obj_sequence)
+        if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
+            raise InputError(f"{folder}: exists and is not an empty folder; the OBJ sequence needs a new one")
+        if not folder.parent.exists():
+            raise InputError(f"{folder}: the folder {folder.parent} does not exist")
+
+
+def _write_extra_outputs(animation, stream, obj_sequence, csv) -> None:
+    from .export import write_fap_csv, write_obj_sequence
+
+    if csv is not None:
+        write_fap_csv(csv, stream)
+    if obj_sequence is not None:
+        write_obj_sequence(obj_sequence, animation)
 
 
 def _write_glb(path, animation) -> None:
@@ -335,24 +356,26 @@ def _preview(path, animation, target, *, source_frames=None, size: int = 480) ->
 
 
 def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview=None, head_motion=False,
-           target=None):
+           target=None, obj_sequence=None, csv=None):
     """``faceanim decode``: a ``.fap`` file onto a target mesh, written as an animated ``.glb``.
     ``target``, a ready :class:`~faceanim.retarget.Target`, stands in for the mesh and its points."""
     from .mpeg4.fapfile import read_fap
     from .retarget.decode import animate_faps
 
     output = _check_output(output)
+    _check_extra_outputs(obj_sequence, csv)
     stream = read_fap(fap_path)
     target = target or load_target(target_mesh, points=points, fdp=fdp)
     animation = animate_faps(stream, target, head_motion=head_motion)
     _write_glb(output, animation)
+    _write_extra_outputs(animation, stream, obj_sequence, csv)
     if preview is not None:
         _preview(preview, animation, target)
     return animation
 
 
 def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=None, fap=None, head_motion=False,
-            progress=None, neutral=None, target=None):
+            progress=None, neutral=None, target=None, obj_sequence=None, csv=None):
     """``faceanim animate``: a video of a face drives a target mesh, through MPEG-4 FAPs. ``target``, a
     ready :class:`~faceanim.retarget.Target`, stands in for the mesh and its points."""
     from .capture.headframe import head_frame, track_to_motion
@@ -364,6 +387,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     from .retarget.decode import animate_faps
 
     output = _check_output(output)
+    _check_extra_outputs(obj_sequence, csv)
     if neutral is not None and not isinstance(parse_neutral(str(neutral), 2**62), tuple):
         raise InputError("animate takes the neutral as FRAME or START:END")  # said before any work is done
     target = target or load_target(target_mesh, points=points, fdp=fdp)
@@ -373,6 +397,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
     animation = animate_faps(stream, target, head_motion=head_motion)
     _write_glb(output, animation)
+    _write_extra_outputs(animation, stream, obj_sequence, csv)
     if fap is not None:
         write_fap(fap, stream)
     if preview is not None:

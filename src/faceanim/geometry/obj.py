@@ -16,7 +16,7 @@ from ..atomic import atomic_output
 from ..errors import FileFormatError
 from .mesh import Mesh
 
-__all__ = ["read_obj", "write_obj"]
+__all__ = ["read_obj", "write_obj", "obj_text", "write_material"]
 
 
 def _resolve(index_text: str, count: int, path, lineno: int, what: str) -> int:
@@ -162,19 +162,15 @@ def _read_texture(obj_path: Path, mtllibs, part_names, labels):
         return np.asarray(image.convert("RGB"))
 
 
-def write_obj(path, mesh: Mesh) -> None:
-    """Write ``mesh`` as OBJ; with a texture, also ``<stem>.mtl`` and ``<stem>.png`` beside it.
-
-    The file is written completely or not at all.
-    """
-    path = Path(path)
+def obj_text(mesh: Mesh, *, material: str | None = None) -> str:
+    """``mesh`` as OBJ text; with ``material``, the file names ``<material>.mtl`` and uses its texture."""
     lines = [f"# written by faceanim: {len(mesh.vertices)} vertices, {len(mesh.triangles)} triangles"]
-    if mesh.texture is not None:
-        lines.append(f"mtllib {path.stem}.mtl")
+    if material is not None:
+        lines.append(f"mtllib {material}.mtl")
     lines.append("\n".join(f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in mesh.vertices))
     if mesh.uv is not None:
         lines.append("\n".join(f"vt {u:.9g} {v:.9g}" for u, v in mesh.uv))
-    if mesh.texture is not None:
+    if material is not None:
         lines.append("usemtl faceanim_texture")
     tri = mesh.triangles + 1
     if mesh.uv is not None:
@@ -182,13 +178,29 @@ def write_obj(path, mesh: Mesh) -> None:
         lines.append("\n".join(f"f {a}/{d} {b}/{e} {c}/{f}" for (a, b, c), (d, e, f) in zip(tri, uvt, strict=True)))
     else:
         lines.append("\n".join(f"f {a} {b} {c}" for a, b, c in tri))
-    text = "\n".join(lines) + "\n"
-    if mesh.texture is not None:
-        from PIL import Image
+    return "\n".join(lines) + "\n"
 
-        with atomic_output(path.with_suffix(".png")) as tmp:
-            Image.fromarray(mesh.texture).save(tmp, format="PNG")
-        with atomic_output(path.with_suffix(".mtl")) as tmp:
-            tmp.write_text(f"newmtl faceanim_texture\nKd 1 1 1\nmap_Kd {path.stem}.png\n")
+
+def write_material(folder, name: str, texture: np.ndarray) -> None:
+    """``<name>.mtl`` and its texture ``<name>.png`` in ``folder``, for OBJ files that say ``mtllib <name>.mtl``."""
+    from PIL import Image
+
+    folder = Path(folder)
+    with atomic_output(folder / f"{name}.png") as tmp:
+        Image.fromarray(texture).save(tmp, format="PNG")
+    with atomic_output(folder / f"{name}.mtl") as tmp:
+        tmp.write_text(f"newmtl faceanim_texture\nKd 1 1 1\nmap_Kd {name}.png\n")
+
+
+def write_obj(path, mesh: Mesh) -> None:
+    """Write ``mesh`` as OBJ; with a texture, also ``<stem>.mtl`` and ``<stem>.png`` beside it.
+
+    The file is written completely or not at all.
+    """
+    path = Path(path)
+    textured = mesh.texture is not None and mesh.uv is not None
+    text = obj_text(mesh, material=path.stem if textured else None)
+    if textured:
+        write_material(path.parent, path.stem, mesh.texture)
     with atomic_output(path) as tmp:
         tmp.write_text(text)
