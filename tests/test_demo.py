@@ -45,3 +45,13 @@ def test_demo_command_says_where_its_outputs_are(tmp_path, capsys):
     assert main(["demo", "-o", str(target)]) == 2
     assert "exists and is not a folder" in capsys.readouterr().err
     assert target.read_text() == "x"
+
+
+def test_blender_opens_the_demo_avatar_with_its_animation(demo, tmp_path):
+    from test_blender import blender_import
+
+    found = blender_import(demo.outputs["demo.glb"], tmp_path)
+    (obj,) = found["objects"]
+    assert obj["textured"] and obj["animated_keys"] == len(obj["shape_keys"]) - 1 > 0
+    start, end = obj["frame_range"]
+    assert end - start == pytest.approx((len(scripted_stream()) - 1) / FPS * 24, abs=1.0)
