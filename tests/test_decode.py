@@ -151,3 +151,22 @@ def test_placement_refuses_an_asymmetric_result():
     points[[263, 362, 291, 300, 454, 386, 374]] += [2.5, 0, 0]  # the face's left side pushed out
     with pytest.raises(InputError, match="automatic placement found an asymmetric face"):
         _check_symmetry(points)
+
+
+def test_a_degenerate_non_manifold_target_still_animates():
+    """A sliver triangle (zero area), a vertex only in it, and a fin triangle given twice (three
+    triangles on one edge): the surface interpolation stays finite and the jaw still opens."""
+    base = grid_mesh(9, size=8.0)
+    points = {"2.1": 4, "2.2": 22, "8.3": 24, "8.4": 20, "9.15": 40, "3.1": 61, "3.3": 52, "3.2": 55, "3.4": 46,
+              "3.7": 62, "3.11": 59, "3.8": 57, "3.12": 54}
+    v = np.vstack([base.vertices, 0.5 * (base.vertices[0] + base.vertices[1]), base.vertices[10] + [0, 0, 1]])
+    t = np.vstack([base.triangles, [[0, 1, 81], [0, 10, 82], [0, 10, 82]]])
+    target = Target.from_points(Mesh(v, t), points)
+    values = np.zeros((3, 68))
+    values[:, 2] = [0, 300, 600]  # open_jaw
+    mask = np.zeros((3, 68), bool)
+    mask[:, 2] = True
+    animation = animate_faps(FapStream(values, mask, 25.0), target)
+    assert np.isfinite(animation.positions).all()
+    drop = animation.positions[:, 4, 1] - v[4, 1]  # the chin (2.1)
+    assert drop[0] == pytest.approx(0, abs=1e-9) and drop[2] < drop[1] < 0
