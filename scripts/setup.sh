@@ -21,7 +21,9 @@ if ((${#missing[@]})) && command -v apt-get >/dev/null 2>&1; then
     "${missing[@]}" >/dev/null
 fi
 python3 -m pip install --quiet --disable-pip-version-check -e ".[capture,render,test]"
-# The Khronos glTF validator, for the export tests (they skip where Node.js is absent).
+# Node tools the tests use (they skip where Node.js is absent): the Khronos glTF validator, and
+# playwright-core, which drives Debian's Chromium for the viewer's browser tests (no browser download).
 if command -v npm >/dev/null 2>&1; then
-  npm install --silent --no-audit --no-fund --prefix tools/node gltf-validator@2.0.0-dev.3.10 >/dev/null
+  npm install --silent --no-audit --no-fund --prefix tools/node gltf-validator@2.0.0-dev.3.10 \
+    playwright-core@1.49.1 >/dev/null
 fi

@@ -87,6 +87,16 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", default="faceanim-demo", metavar="DIR",
                    help="folder for the outputs (default: ./faceanim-demo)")
 
+    p = commands.add_parser("view", help="watch an animated .glb in the browser",
+                            description="Serve a local web page (127.0.0.1 only) that plays FILE.glb, with its source "
+                                        "video beside it and its FAP curves under it, and open it in the browser. "
+                                        "A model with action-unit morph targets gets sliders to mix expressions.")
+    p.add_argument("model", metavar="FILE.glb")
+    p.add_argument("--video", metavar="SOURCE", help="the source video, played in step with the face")
+    p.add_argument("--fap", metavar="FILE.fap", help="FAP curves to draw under the face")
+    p.add_argument("--port", type=int, default=8765, help="port on 127.0.0.1 (default: 8765)")
+    p.add_argument("--no-browser", action="store_true", help="only print the address")
+
     p = commands.add_parser("fap-info", help="summarise a .fap file",
                             description="Frames, fps, active FAPs with their ranges, and values outside MPEG-4's.")
     p.add_argument("fap", metavar="FILE.fap")
@@ -134,7 +144,7 @@ def main(argv=None) -> int:
             target = pipeline.avatar(args.photo, args.output)
             print(f"wrote {args.output}: {len(target.mesh.vertices)} vertices, {len(target.points)} control points")
         elif args.command == "demo":
-            from .demo import run_demo
+            from .demo import run_demo, view_command
 
             result = run_demo(args.output)
             total = sum(seconds for _, seconds in result.steps)
@@ -143,7 +153,20 @@ def main(argv=None) -> int:
             print(f"done in {total:.1f} s; outputs in {result.folder}/:")
             for path in result.outputs.values():
                 print(f"  {path}")
-            print(f"open {result.outputs['report.html']} in a browser")
+            print(f"open {result.outputs['report.html']} in a browser, or watch it: {view_command(result)}")
+        elif args.command == "view":
+            server = pipeline.view(args.model, video=args.video, fap=args.fap, port=args.port)
+            print(f"faceanim view: {server.url} (Ctrl-C to stop)", flush=True)
+            if not args.no_browser:
+                import webbrowser
+
+                webbrowser.open(server.url)
+            try:
+                server.serve_forever()
+            except KeyboardInterrupt:
+                pass
+            finally:
+                server.close()
         elif args.command == "fap-info":
             print(pipeline.fap_info(args.fap))
     except (InputError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:

@@ -28,7 +28,7 @@ from .errors import InputError
 from .mpeg4 import FAP_COUNT
 from .mpeg4.fapstream import FapStream
 
-__all__ = ["SCRIPT", "scripted_stream", "run_demo", "DemoResult"]
+__all__ = ["SCRIPT", "scripted_stream", "run_demo", "view_command", "DemoResult"]
 
 FPS = 25.0
 DURATION = 4.4  # seconds; the first half second stays neutral, so the capture finds its rest pose there
@@ -173,6 +173,12 @@ def _stills(video, indices) -> list[tuple[int, str]]:
     return found
 
 
+def view_command(result: DemoResult) -> str:
+    """The command that opens the demo's outputs in the web viewer."""
+    o = result.outputs
+    return f"faceanim view {o['demo.glb']} --video {o['performance.mp4']} --fap {o['demo.fap']}"
+
+
 def _write_report(result: DemoResult, stills, *, frames: int, vertices: int) -> None:
     from .atomic import atomic_output
 
@@ -200,6 +206,9 @@ avatar, made to perform a scripted expression sequence by warping the photo (Ara
 warp), and that video was then tracked, encoded to MPEG-4 FAPs and retargeted onto the avatar:
 {frames} frames onto {vertices:,} vertices.</p>
 <p>Outputs: {links}</p>
+<p>Watch it in the viewer (face, source video and FAP curves in step):
+<code>{html.escape(view_command(result))}</code>, then open
+<a href="http://127.0.0.1:8765/">http://127.0.0.1:8765/</a>.</p>
 <video src="preview.mp4" controls loop muted></video>
 <h2>What ran</h2>
 <table><tr><th>step</th><th>time</th></tr>{steps}<tr><th>total</th><th>{total:.1f} s</th></tr></table>

@@ -15,7 +15,7 @@ from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
 
 __all__ = ["transfer", "read_pairs", "track", "encode", "fap_info", "portrait", "portrait_landmarks",
            "avatar_target", "avatar",
-           "load_target", "decode", "animate"]
+           "load_target", "decode", "animate", "fap_curves", "view"]
 
 
 def read_pairs(path) -> tuple[np.ndarray, np.ndarray]:
@@ -404,3 +404,47 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
         _, pose = head_frame(recorded)
         _preview(preview, animation, target, source_frames=overlay_frames(recorded, pose))
     return animation, stream
+
+
+# ---- looking at the result: the web viewer
+
+
+def fap_curves(stream) -> dict:
+    """The FAPs a stream carries as curves for the viewer: ``{title, fps, names, values}`` (values per
+    curve, in FAPU units; absent frames as 0)."""
+    from .mpeg4 import fap_table
+
+    table = fap_table()
+    active = [j for j in np.flatnonzero(stream.mask.any(axis=0)) if j >= 2]
+    values = np.where(stream.mask, stream.values, 0.0)
+    return {"title": f"FAP curves of {stream.name} (FAPU units)", "fps": stream.fps,
+            "names": [f"{j + 1} {table.names[j]}" for j in active],
+            "values": [np.round(values[:, j], 2).tolist() for j in active]}
+
+
+def view(model, *, video=None, fap=None, port: int = 8765):
+    """``faceanim view``: check the files, then return the (not yet serving) viewer server for them.
+
+    Every input is checked before the server exists, so a bad file or a busy port is a one-line error
+    and nothing is left listening."""
+    from .capture.video import open_frames
+    from .geometry.meshio import read_glb_json
+    from .mpeg4.fapfile import read_fap
+    from .viewer import ViewerFiles, ViewerServer
+
+    model = Path(model)
+    if model.suffix.lower() != ".glb":
+        raise InputError(f"{model}: the viewer shows binary glTF (.glb) files")
+    if not model.is_file():
+        raise InputError(f"{model}: no such file")
+    if not read_glb_json(model).get("meshes"):
+        raise InputError(f"{model}: holds no mesh to show")
+    if not 0 <= int(port) <= 65535:
+        raise InputError(f"--port must be between 0 and 65535, got {port}")
+    if video is not None:
+        video = Path(video)
+        with open_frames(video) as frames:
+            if next(iter(frames), None) is None:
+                raise InputError(f"{video}: holds no frames")
+    curves = fap_curves(read_fap(fap)) if fap is not None else None
+    return ViewerServer(ViewerFiles(model, video, curves, title=model.stem), port=int(port))
