@@ -71,8 +71,11 @@ def test_textured_mesh_with_seams_and_named_sliders(tmp_path):
     assert meta["meshes"][0]["extras"]["targetNames"] == ["AU01", "AU02"] and "animations" not in meta
     report = khronos_report(tmp_path / "s.glb")
     assert report["errors"] == 0 and report["warnings"] == 0, report["messages"]
-    back = read_mesh(tmp_path / "s.glb")  # trimesh reads it: split seams, per-vertex UVs, the texture
-    assert len(back.vertices) == 6 and back.texture.shape == (16, 16, 3)
+    back = read_mesh(tmp_path / "s.glb")  # split at the seam for glTF, welded again on reading
+    assert np.allclose(back.vertices, mesh.vertices) and np.array_equal(back.triangles, mesh.triangles)
+    assert len(back.uv) == 6 and back.texture.shape == (16, 16, 3)
+    corners = back.uv[back.uv_triangles]
+    assert np.allclose(corners, mesh.uv[mesh.uv_triangles], atol=1e-6)  # every corner keeps its own UV
 
 
 def test_morph_errors():

@@ -140,7 +140,7 @@ def test_page_plays_the_face_beside_its_video_without_errors(tmp_path_factory):
         report = browser_check(server.url, out)
     assert report["console_errors"] == [] and report["page_errors"] == []
     assert report["time_b"] > report["time_a"]  # the clock runs
-    assert face_difference(out / "playing_a.png", out / "playing_b.png") > 0.5  # and the face moves
+    assert face_difference(out / "playing_a.png", out / "playing_b.png") > 0.1  # and the face moves (a still face: 0)
     assert report["has_video"] and report["has_curves"] and not report["editor"]
     video = report["video"]
     assert not video["error"] and video["ready"] >= 2 and abs(video["time"] - video["face_time"]) < 0.05
