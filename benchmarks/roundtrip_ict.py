@@ -89,7 +89,11 @@ def main(argv=None) -> int:
              "automatically; path: MediaPipe face mesh, head pose, One Euro filter, FAPs (neutral: frames 0-9), "
              "decoding onto B. Relative error over B's face area on frames where the expression is at least "
              "half on: 0 is exact, 1 is no better than not moving.", "",
-             "| segment | frames | relative error | truth rms (cm) |", "|---|---|---|---|"]
+             "Diagnosis: the gain that would fit the output's motion best to the truth (least squares; 1 means the "
+             "size is right, negative means the wrong direction), and the error left at that gain (what is wrong "
+             "with the shape of the motion, not its size).", "",
+             "| segment | frames | relative error | truth rms (cm) | best gain | error at best gain |",
+             "|---|---|---|---|---|---|"]
     all_errors = []
     for name, expressions in SEGMENTS:
         column = model.expression_names.index(expressions[0])
@@ -97,7 +101,11 @@ def main(argv=None) -> int:
         err = relative_error(out[frames], truth[frames], rest)
         all_errors.append(err)
         size = np.sqrt(((truth[frames] - rest) ** 2).sum(-1).mean())
-        lines.append(f"| {name} | {len(frames)} | {np.median(err):.2f} | {size:.3f} |")
+        moved, wanted = (out[frames] - rest).ravel(), (truth[frames] - rest).ravel()
+        gain = moved @ wanted / max(moved @ moved, 1e-300)
+        refit = relative_error(rest + gain * (out[frames] - rest), truth[frames], rest)
+        lines.append(f"| {name} | {len(frames)} | {np.median(err):.2f} | {size:.3f} | {gain:.2f} | "
+                     f"{np.median(refit):.2f} |")
     everything = np.concatenate(all_errors)
     lines += ["", f"**Median over all active frames: {np.median(everything):.2f}** "
               f"(FAPs written per frame: {int(stream.mask[0].sum())})."]
