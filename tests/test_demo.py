@@ -2,14 +2,13 @@ import pytest
 from conftest import khronos_report
 
 from faceanim.cli import main
-from faceanim.demo import FPS, SCRIPT, run_demo, scripted_stream
+from faceanim.demo import FPS, SCRIPT, apex_frames, run_demo, scripted_stream
 from faceanim.mpeg4.fapfile import read_fap
 
 
 def test_scripted_stream_reaches_each_apex_in_its_window():
     stream = scripted_stream()
-    for _, start, end, apex in SCRIPT:
-        middle = int(round(0.5 * (start + end) * FPS))
+    for middle, (_, start, _end, apex) in zip(apex_frames(), SCRIPT, strict=True):
         for fap, value in apex.items():
             assert stream.values[middle, fap - 1] == pytest.approx(value, rel=0.05)  # within half a frame of the apex
             assert stream.values[: int(start * FPS), fap - 1].max() < 1e-9  # still before its window
@@ -38,6 +37,8 @@ def test_demo_writes_every_output_and_reads_the_performance_back(demo):
     page = demo.outputs["report.html"].read_text()
     assert "FAPs read back from the video" in page and "faceanim view " in page
     assert page.count('<img src="data:image/jpeg') == len(SCRIPT)
+    for frame, (name, *_) in zip(apex_frames(), SCRIPT, strict=True):  # every still says what it shows
+        assert f"<figcaption>frame {frame}: {name}</figcaption>" in page
 
 
 def test_demo_command_says_where_its_outputs_are(tmp_path, capsys):

@@ -28,7 +28,7 @@ from .errors import InputError
 from .mpeg4 import FAP_COUNT
 from .mpeg4.fapstream import FapStream
 
-__all__ = ["SCRIPT", "scripted_stream", "run_demo", "view_command", "DemoResult"]
+__all__ = ["SCRIPT", "apex_frames", "scripted_stream", "run_demo", "view_command", "DemoResult"]
 
 FPS = 25.0
 DURATION = 4.4  # seconds; the first half second stays neutral, so the capture finds its rest pose there
@@ -39,6 +39,11 @@ SCRIPT = (
     ("brows up", 2.5, 3.4, {31: 160, 32: 160, 33: 180, 34: 180, 35: 140, 36: 140}),
     ("blink", 3.5, 3.9, {19: 950, 20: 950, 21: 120, 22: 120}),
 )
+
+
+def apex_frames() -> list[int]:
+    """The frame at which each expression of :data:`SCRIPT` peaks (the middle of its window)."""
+    return [int(FPS * 0.5 * (start + end)) for _, start, end, _ in SCRIPT]
 
 
 def scripted_stream() -> FapStream:
@@ -93,7 +98,7 @@ def run_demo(folder, *, progress=None) -> DemoResult:
             result.outputs["performance.mp4"], result.outputs["demo.glb"], target=target,
             preview=result.outputs["preview.mp4"], fap=result.outputs["demo.fap"], progress=progress)
     result.recovery = fap_recovery(script, recovered)
-    stills = _stills(result.outputs["preview.mp4"], [int(FPS * 0.5 * (s + e)) for _, s, e, _ in SCRIPT])
+    stills = _stills(result.outputs["preview.mp4"], apex_frames())
     _write_report(result, stills, frames=len(animation), vertices=len(target.mesh.vertices))
     return result
 
@@ -186,7 +191,7 @@ def _write_report(result: DemoResult, stills, *, frames: int, vertices: int) -> 
     steps = "".join(f"<tr><td>{html.escape(what)}</td><td>{seconds:.1f} s</td></tr>" for what, seconds in result.steps)
     recovery = "".join(f"<tr><td>{name}</td><td>{faps}</td><td>{corr:.2f}</td><td>{gain:.2f}</td></tr>"
                        for name, faps, corr, gain in result.recovery)
-    names = {round(FPS * 0.5 * (s + e)): name for name, s, e, _ in SCRIPT}
+    names = dict(zip(apex_frames(), (name for name, *_ in SCRIPT), strict=True))
     pictures = "".join(f'<figure><img src="data:image/jpeg;base64,{data}" alt="frame {i}">'
                        f"<figcaption>frame {i}: {names.get(i, '')}</figcaption></figure>" for i, data in stills)
     links = " · ".join(f'<a href="{path.name}">{path.name}</a>' for key, path in result.outputs.items()
