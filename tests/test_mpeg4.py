@@ -57,3 +57,15 @@ def test_fapu_errors_name_the_problem():
         fapu_from_points(upside_down)
     with pytest.raises(ValueError, match="mw0 must be a positive distance"):
         Fapu(1, 1, 1, 1, 0)
+
+
+def test_curve_columns_are_the_low_level_faps_some_frame_carries():
+    import numpy as np
+
+    from faceanim.mpeg4.fapstream import FapStream, curve_columns
+
+    mask = np.zeros((3, 68), bool)
+    mask[0, 0] = True  # a viseme: a selection, not a curve
+    mask[1, 2] = mask[2, 47] = True
+    stream = FapStream(np.zeros((3, 68)), mask, 25.0, visemes=np.zeros((3, 4), np.int64))
+    assert curve_columns(stream).tolist() == [2, 47]

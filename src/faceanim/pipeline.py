@@ -15,7 +15,7 @@ from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
 
 __all__ = ["transfer", "read_pairs", "track", "encode", "fap_info", "portrait", "portrait_landmarks",
            "avatar_target", "avatar",
-           "load_target", "decode", "animate", "fap_curves", "view"]
+           "load_target", "decode", "animate", "view"]
 
 
 def read_pairs(path) -> tuple[np.ndarray, np.ndarray]:
@@ -409,19 +409,6 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
 # ---- looking at the result: the web viewer
 
 
-def fap_curves(stream) -> dict:
-    """The FAPs a stream carries as curves for the viewer: ``{title, fps, names, values}`` (values per
-    curve, in FAPU units; absent frames as 0)."""
-    from .mpeg4 import fap_table
-
-    table = fap_table()
-    active = [j for j in np.flatnonzero(stream.mask.any(axis=0)) if j >= 2]
-    values = np.where(stream.mask, stream.values, 0.0)
-    return {"title": f"FAP curves of {stream.name} (FAPU units)", "fps": stream.fps,
-            "names": [f"{j + 1} {table.names[j]}" for j in active],
-            "values": [np.round(values[:, j], 2).tolist() for j in active]}
-
-
 def view(model, *, video=None, fap=None, port: int = 8765):
     """``faceanim view``: check the files, then return the (not yet serving) viewer server for them.
 
@@ -430,7 +417,7 @@ def view(model, *, video=None, fap=None, port: int = 8765):
     from .capture.video import open_frames
     from .geometry.meshio import read_glb_json
     from .mpeg4.fapfile import read_fap
-    from .viewer import ViewerFiles, ViewerServer
+    from .viewer import ViewerFiles, ViewerServer, fap_curves
 
     model = Path(model)
     if model.suffix.lower() != ".glb":

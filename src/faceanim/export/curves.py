@@ -7,7 +7,7 @@ import numpy as np
 
 from ..atomic import atomic_output
 from ..mpeg4 import fap_table
-from ..mpeg4.fapstream import FapStream
+from ..mpeg4.fapstream import FapStream, curve_columns
 
 __all__ = ["write_fap_csv"]
 
@@ -17,7 +17,7 @@ def write_fap_csv(path, stream: FapStream) -> list[str]:
     (``3_open_jaw``) in the FAP's own units; a frame without that FAP leaves its cell empty.
     Returns the header."""
     table = fap_table()
-    active = [j for j in np.flatnonzero(stream.mask.any(axis=0)) if j >= 2]  # 1 and 2 are not curves
+    active = curve_columns(stream)
     header = ["frame", "time"] + [f"{j + 1}_{table.names[j]}" for j in active]
     rows = [",".join(header)]
     frames = stream.frame_numbers if stream.frame_numbers is not None else np.arange(len(stream))

@@ -9,7 +9,7 @@ import numpy as np
 from ..validation import as_array
 from .tables import FAP_COUNT, fap_table
 
-__all__ = ["FapStream", "fap_ranges"]
+__all__ = ["curve_columns", "FapStream", "fap_ranges"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,3 +99,10 @@ def fap_ranges() -> tuple[np.ndarray, np.ndarray]:
     low = np.where(np.isnan(table.i_min), 0.0, table.i_min * table.quant_step)
     high[:2], low[:2] = np.inf, -np.inf
     return low, high
+
+
+def curve_columns(stream: FapStream) -> np.ndarray:
+    """Columns of the low-level FAPs (3-68) that any frame carries: the FAPs that are curves over time
+    (1 and 2, visemes and expressions, are selections, not values)."""
+    present = np.flatnonzero(stream.mask.any(axis=0))
+    return present[present >= 2]
