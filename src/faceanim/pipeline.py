@@ -296,14 +296,12 @@ def _check_output(path, suffixes=(".glb",)) -> Path:
 
 def _check_extra_outputs(obj_sequence, csv) -> None:
     """Refuse unusable extra outputs before any work is done."""
+    from .export.objseq import check_sequence_folder
+
     if csv is not None:
         _check_output(csv, (".csv",))
     if obj_sequence is not None:
-        folder = Path(obj_sequence)
-        if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
-            raise InputError(f"{folder}: exists and is not an empty folder; the OBJ sequence needs a new one")
-        if not folder.parent.exists():
-            raise InputError(f"{folder}: the folder {folder.parent} does not exist")
+        check_sequence_folder(obj_sequence)
 
 
 def _write_extra_outputs(animation, stream, obj_sequence, csv) -> None:

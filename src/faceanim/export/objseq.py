@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..geometry.animation import Animation
 from ..geometry.obj import obj_text, write_material
 
-__all__ = ["write_obj_sequence"]
+__all__ = ["write_obj_sequence", "check_sequence_folder"]
 
 
 def write_obj_sequence(folder, animation: Animation, *, stem: str = "frame") -> list[Path]:
@@ -22,11 +22,7 @@ def write_obj_sequence(folder, animation: Animation, *, stem: str = "frame") -> 
     The folder appears complete or not at all: the frames are written into a hidden folder beside it,
     which is renamed into place at the end.
     """
-    folder = Path(folder)
-    if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
-        raise InputError(f"{folder}: exists and is not an empty folder; the OBJ sequence needs a new one")
-    if not folder.parent.exists():
-        raise InputError(f"{folder}: the folder {folder.parent} does not exist")
+    folder = check_sequence_folder(folder)
     mesh = animation.mesh
     textured = mesh.texture is not None and mesh.uv is not None
     digits = max(5, len(str(len(animation) - 1)))
@@ -45,6 +41,16 @@ def write_obj_sequence(folder, animation: Animation, *, stem: str = "frame") -> 
         if work.exists():
             shutil.rmtree(work)
     return [folder / name for name in names]
+
+
+def check_sequence_folder(folder) -> Path:
+    """``folder`` as a Path, if an OBJ sequence can be written there (new or empty, in an existing folder)."""
+    folder = Path(folder)
+    if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
+        raise InputError(f"{folder}: exists and is not an empty folder; the OBJ sequence needs a new one")
+    if not folder.parent.exists():
+        raise InputError(f"{folder}: the folder {folder.parent} does not exist")
+    return folder
 
 
 def _umask() -> int:
