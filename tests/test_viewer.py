@@ -47,7 +47,7 @@ def raw_get(port: int, target: str) -> int:
 def test_server_serves_its_routes_and_refuses_everything_else(grid_glb):
     with ViewerServer(ViewerFiles(grid_glb), port=0).start() as server:
         assert server.url.startswith("http://127.0.0.1:")
-        assert server._server.server_address[0] == "127.0.0.1"  # loopback only
+        assert server.host == "127.0.0.1"  # loopback only
         for ok in ("/", "/config.json", "/files/model.glb", "/assets/viewer.js", "/assets/three/three.module.min.js",
                    "/assets/three/addons/loaders/GLTFLoader.js", "/?t=1"):
             assert raw_get(server.port, ok) == 200, ok
@@ -77,6 +77,12 @@ def test_video_is_served_in_ranges_for_seeking(grid_glb):
         response = connection.getresponse()
         assert response.status == 206 and response.read() == video.read_bytes()[100:200]
         assert response.getheader("Content-Range") == f"bytes 100-199/{video.stat().st_size}"
+        connection.request("GET", "/files/source.mp4", headers={"Range": "bytes=-50"})  # the last 50 bytes
+        assert connection.getresponse().read() == video.read_bytes()[-50:]
+        connection.request("GET", "/files/source.mp4", headers={"Range": f"bytes={10 ** 9}-"})
+        response = connection.getresponse()
+        response.read()
+        assert response.status == 416
 
 
 def test_view_refuses_bad_inputs_before_serving(tmp_path, grid_glb, capsys):

@@ -81,7 +81,7 @@ class ViewerServer:
                 raise InputError(f"port {port} is in use; try --port {free_port(port + 1)}") from None
             raise
         self._server.daemon_threads = True
-        self.port = self._server.server_address[1]
+        self.host, self.port = self._server.server_address[:2]
         self.url = f"http://{HOST}:{self.port}/"
         self._thread = None
 
@@ -120,7 +120,7 @@ def _type(path: str) -> str:
 
 
 def _file_route(path: Path):
-    """A given file, read when asked for (a video can be large), with its content type."""
+    """A given file, read when asked for, with its content type."""
     return (path, _type(path.name))
 
 
@@ -140,17 +140,17 @@ def _handler(routes: dict):
                 self.send_error(404, "Not Found")
                 return
             content, kind = route
-            data = content.read_bytes() if isinstance(content, Path) else content
-            start, end, status = 0, len(data), 200
+            size = content.stat().st_size if isinstance(content, Path) else len(content)
+            start, end, status = 0, size, 200
             ranged = self.headers.get("Range", "")
             if ranged.startswith("bytes=") and isinstance(content, Path):  # video seeking asks for ranges
                 first, _, last = ranged[6:].split(",")[0].partition("-")
                 try:
-                    start = int(first) if first else max(0, len(data) - int(last))
-                    end = min(len(data), int(last) + 1) if first and last else len(data)
+                    start = int(first) if first else max(0, size - int(last))
+                    end = min(size, int(last) + 1) if first and last else size
                 except ValueError:
-                    start, end = 0, len(data)
-                if start >= len(data):
+                    start, end = 0, size
+                if start >= size:
                     self.send_error(416, "Range Not Satisfiable")
                     return
                 status = 206
@@ -160,10 +160,16 @@ def _handler(routes: dict):
             self.send_header("Accept-Ranges", "bytes")
             self.send_header("Cache-Control", "no-store")
             if status == 206:
-                self.send_header("Content-Range", f"bytes {start}-{end - 1}/{len(data)}")
+                self.send_header("Content-Range", f"bytes {start}-{end - 1}/{size}")
             self.end_headers()
-            if body:
-                self.wfile.write(data[start:end])
+            if not body:
+                return
+            if isinstance(content, Path):  # read only the part asked for: a video can be large
+                with open(content, "rb") as handle:
+                    handle.seek(start)
+                    self.wfile.write(handle.read(end - start))
+            else:
+                self.wfile.write(content[start:end])
 
         def log_message(self, *args):  # the terminal is the person's, not a request log
             pass
