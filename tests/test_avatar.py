@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from conftest import khronos_report, shared
 
-from faceanim import pipeline
+from faceanim import pipeline, portrait
 from faceanim.capture.avatar import AVATAR_PARTS
 from faceanim.capture.landmarks import FEATURE_POINT_LANDMARK
 from faceanim.errors import InputError
@@ -16,9 +16,9 @@ from faceanim.retarget.decode import animate_faps
 
 @pytest.fixture(scope="module")
 def astronaut():
-    image, _ = pipeline.portrait()
-    landmarks = pipeline.portrait_landmarks(image, "astronaut")
-    return image, landmarks, pipeline.avatar_target(image=image, landmarks=landmarks)
+    image, _ = portrait.portrait()
+    landmarks = portrait.portrait_landmarks(image, "astronaut")
+    return image, landmarks, portrait.avatar_target(image=image, landmarks=landmarks)
 
 
 def test_avatar_is_opened_at_eyes_and_mouth_with_parts_behind(astronaut):

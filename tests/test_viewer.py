@@ -13,7 +13,7 @@ import pytest
 from conftest import shared
 from test_gltf import animated_grid
 
-from faceanim import pipeline
+from faceanim import pipeline, portrait
 from faceanim.cli import main
 from faceanim.errors import InputError
 from faceanim.export import MorphSet, morphs_from_animation, write_glb
@@ -137,7 +137,7 @@ def face_difference(a: Path, b: Path) -> float:
 def test_page_plays_the_face_beside_its_video_without_errors(tmp_path_factory):
     out = tmp_path_factory.mktemp("viewer_screenshots")
     demo = shared("videos", "d0.mp4")
-    target = pipeline.avatar_target()
+    target = portrait.avatar_target()
     stream = read_fap(shared("xface", "Faps", "joy.fap"))
     glb = out / "joy.glb"
     write_glb(glb, target.mesh, morphs_from_animation(animate_faps(stream, target)))
@@ -154,7 +154,7 @@ def test_page_plays_the_face_beside_its_video_without_errors(tmp_path_factory):
 
 def test_au_sliders_change_the_face_and_save_a_recipe_and_fap(tmp_path_factory):
     out = tmp_path_factory.mktemp("viewer_sliders")
-    target = pipeline.avatar_target()
+    target = portrait.avatar_target()
     table = {"AU12": {12: 300, 13: 300, 6: 80, 7: 80}, "AU26": {3: 500}}  # lip corner puller, jaw drop
     shapes = []
     for faps in table.values():

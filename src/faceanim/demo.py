@@ -72,7 +72,7 @@ class DemoResult:
 
 def run_demo(folder, *, progress=None) -> DemoResult:
     """Run the demo into ``folder`` (created if missing). Returns what it wrote and measured."""
-    from . import pipeline
+    from . import pipeline, portrait
     from .render.video import video_writer
 
     folder = Path(folder)
@@ -82,9 +82,9 @@ def run_demo(folder, *, progress=None) -> DemoResult:
     result = DemoResult(folder, {name: folder / name for name in
                                  ("demo.glb", "preview.mp4", "demo.fap", "performance.mp4", "report.html")})
     with _timed(result.steps, "the avatar: astronaut portrait tracked, face mesh built and textured"):
-        image = face_crop(*pipeline.portrait())
-        landmarks = pipeline.portrait_landmarks(image, "the embedded portrait")
-        target = pipeline.avatar_target(image=image, landmarks=landmarks)
+        image = face_crop(*portrait.portrait())
+        landmarks = portrait.portrait_landmarks(image, "the embedded portrait")
+        target = portrait.avatar_target(image=image, landmarks=landmarks)
     with _timed(result.steps, "the performance: scripted FAPs decoded on the avatar, the photo warped along "
                               "them (Arad's RBF)"):
         script = scripted_stream()
@@ -107,9 +107,9 @@ def face_crop(image: np.ndarray, name: str, *, size: int = 480) -> np.ndarray:
     """The portrait cut to a square around its face and scaled to ``size``, so the face fills the video."""
     from PIL import Image
 
-    from . import pipeline
+    from . import portrait
 
-    pixels = pipeline.portrait_landmarks(image, name)[:, :2] * image.shape[1::-1]
+    pixels = portrait.portrait_landmarks(image, name)[:, :2] * image.shape[1::-1]
     centre = 0.5 * (pixels.min(axis=0) + pixels.max(axis=0)) - [0.0, 0.05 * np.ptp(pixels[:, 1])]
     half = min(1.1 * np.ptp(pixels, axis=0).max(), 0.5 * min(image.shape[:2]))
     left, top = np.clip(np.rint(centre - half), 0, np.array(image.shape[1::-1]) - 2 * half).astype(int)

@@ -13,8 +13,7 @@ from .errors import FileFormatError, InputError
 from .geometry import read_mesh, write_mesh
 from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
 
-__all__ = ["transfer", "read_pairs", "track", "encode", "fap_info", "portrait", "portrait_landmarks",
-           "avatar_target", "avatar",
+__all__ = ["transfer", "read_pairs", "track", "encode", "fap_info", "avatar",
            "load_target", "decode", "animate", "view"]
 
 
@@ -207,52 +206,11 @@ def fap_info(path) -> str:
 # ---- animating a target: FAPs or a video -> Animation -> glTF (and a preview video)
 
 
-def portrait(photo=None) -> tuple[np.ndarray, str]:
-    """An RGB portrait and its name: the image file ``photo`` (the first frame of a video), or, with
-    None, the public-domain astronaut portrait (Eileen Collins, NASA) that scikit-image ships."""
-    if photo is None:
-        try:
-            from skimage import data
-        except ImportError:
-            raise ImportError("the embedded portrait comes with scikit-image: pip install 'faceanim[capture]'") \
-                from None
-        return data.astronaut(), "astronaut"
-    from .capture.video import open_frames
-
-    with open_frames(photo) as frames:
-        for _, frame in frames:
-            return frame, Path(photo).stem
-    raise InputError(f"{photo}: holds no frames")
-
-
-def portrait_landmarks(image: np.ndarray, name: str) -> np.ndarray:
-    """The tracker's ``(478, 3)`` landmarks of the (largest) face in a portrait."""
-    from .capture.tracker import FaceTracker, TrackerOptions
-
-    with FaceTracker(TrackerOptions(static=True)) as tracker:
-        landmarks = tracker(image)
-    if landmarks is None:
-        raise InputError(f"{name}: the face tracker finds no face in it")
-    return landmarks
-
-
-def avatar_target(photo=None, *, image=None, landmarks=None, subdivisions: int = 2):
-    """A Target made from a portrait (see :func:`portrait`): the tracker's face mesh, textured from it.
-    ``image`` (and its ``landmarks``, when already tracked) stand in for a file."""
-    from .capture.avatar import avatar_points, face_from_landmarks
-    from .retarget.target import Target
-
-    image, name = (image, "image") if image is not None else portrait(photo)
-    if landmarks is None:
-        landmarks = portrait_landmarks(image, str(photo) if photo is not None else name)
-    mesh = face_from_landmarks(landmarks, image, subdivisions=subdivisions)
-    return Target.from_points(mesh, avatar_points(mesh), source=name)
-
-
 def avatar(photo, output):
     """``faceanim avatar``: a textured 3D face from a portrait, written as a ``.glb`` that carries its
     control points (so it animates without placement). Returns the Target."""
     from .export import write_glb
+    from .portrait import avatar_target
 
     output = _check_output(output)
     target = avatar_target(photo)
@@ -265,6 +223,7 @@ def load_target(mesh_path=None, *, points=None, fdp=None):
     ``.fdp``, the points a faceanim ``.glb`` carries, automatic placement (render, track, cast back).
     With no mesh, the avatar of the embedded portrait (see :func:`avatar_target`)."""
     from .geometry.meshio import glb_extras
+    from .portrait import avatar_target
     from .retarget.placement import auto_target
     from .retarget.target import Target, target_from_fdp, target_from_json
 
