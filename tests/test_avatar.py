@@ -67,6 +67,8 @@ def test_avatar_glb_carries_its_points_and_validates(tmp_path):
     assert np.allclose(again.mesh.vertices, target.mesh.vertices, atol=1e-5)
     assert np.array_equal(again.mesh.triangles, target.mesh.triangles)
     assert read_mesh(out).texture is not None
+    (tmp_path / "plain.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    assert glb_extras(tmp_path / "plain.obj") == {}  # other formats carry nothing, and are not opened as GLB
     report = khronos_report(out)
     assert report["errors"] == 0 and report["warnings"] == 0
 
