@@ -1,0 +1,84 @@
+"""AU recipes made on a face: displacement fields, with the lips and lids kept apart.
+
+Linear muscles, sphincters and the cheek's air are linear in their activation, and the jaw and lids
+turn; an expression is the sum of its movers' fields, each mover applied once with the activation
+all the recipe's AUs give it. Exaggeration (intensity above 1) is kept plausible by
+:func:`synthesise`'s guard: where a recipe would close a lid past the other lid or push one lip
+through the other, the part of each intensity above 1 is scaled back until it does not.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from .face import MuscleFace
+from .facs import MOVERS, muscle_activations
+
+__all__ = ["expression_field", "synthesise", "au_fields", "crossings", "CONTACT_PAIRS"]
+
+# Feature points that face each other across an opening (upper, lower): the lids and the inner lips.
+CONTACT_PAIRS = (("3.1", "3.3"), ("3.2", "3.4"), ("2.2", "2.3"), ("2.6", "2.8"), ("2.7", "2.9"))
+_TOLERANCE = 0.004  # ES0: a pair may touch, not cross
+
+
+def expression_field(face: MuscleFace, recipe: dict) -> np.ndarray:
+    """``(V, 3)`` displacement of every vertex under ``recipe`` (parsed, ``{"12": 1.0}``), model units."""
+    field = np.zeros((len(face.mesh.vertices), 3))
+    for (mover, side), activation in muscle_activations(recipe).items():
+        if activation:
+            field += MOVERS[mover][0].displacement(face, activation, side)
+    return field
+
+
+def crossings(face: MuscleFace, field: np.ndarray) -> list[str]:
+    """The contact pairs that ``field`` pushes through each other: upper point below the lower one
+    (along the face's up axis) by more than the tolerance, where at rest it was not."""
+    crossed = []
+    up = face.axes[1]
+    for upper, lower in CONTACT_PAIRS:
+        if upper not in face.target.points or lower not in face.target.points:
+            continue
+        i, j = face.target.points[upper], face.target.points[lower]
+        rest = (face.mesh.vertices[i] - face.mesh.vertices[j]) @ up
+        moved = (face.mesh.vertices[i] + field[i] - face.mesh.vertices[j] - field[j]) @ up
+        if moved < min(rest, 0.0) - _TOLERANCE * face.unit:
+            crossed.append(f"{upper}/{lower}")
+    return crossed
+
+
+def synthesise(face: MuscleFace, recipe: dict, *, guard: bool = True) -> tuple[np.ndarray, dict]:
+    """The displacement field of ``recipe`` and the recipe actually made.
+
+    With ``guard``, intensities above 1 that would push a lid or lip through its partner (see
+    :func:`crossings`) are scaled back toward 1 (bisection on the excess) and a warning says so.
+    """
+    field = expression_field(face, recipe)
+    if not guard or not crossings(face, field):
+        return field, dict(recipe)
+    base = {k: min(v, 1.0) for k, v in recipe.items()}
+    excess = {k: v - base[k] for k, v in recipe.items()}
+
+    def scaled(s):
+        return {k: base[k] + s * excess[k] for k in recipe}
+
+    low, high = 0.0, 1.0
+    if crossings(face, expression_field(face, base)):
+        return field, dict(recipe)  # within the normal range already: nothing to take back
+    for _ in range(12):
+        mid = 0.5 * (low + high)
+        if crossings(face, expression_field(face, scaled(mid))):
+            high = mid
+        else:
+            low = mid
+    made = scaled(low)
+    warnings.warn("exaggeration limited to keep the lips and lids from crossing: "
+                  + ", ".join(f"AU{k} {recipe[k]:.2f}->{made[k]:.2f}" for k in recipe if made[k] != recipe[k]),
+                  stacklevel=2)
+    return expression_field(face, made), made
+
+
+def au_fields(face: MuscleFace, codes) -> np.ndarray:
+    """``(K, V, 3)`` the field of each AU code at intensity 1 (morph targets, a fitting basis)."""
+    return np.stack([expression_field(face, {code: 1.0}) for code in codes])
