@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 
 from .errors import InputError
 
@@ -97,6 +98,38 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--port", type=int, default=8765, help="port on 127.0.0.1 (default: 8765)")
     p.add_argument("--no-browser", action="store_true", help="only print the address")
 
+    p = commands.add_parser("express", help="make an expression (FACS AUs or an emotion) on a 3D face",
+                            description="Make FACS action units (Waters vector muscles placed by the face's feature "
+                                        "points) or one of the six emotions on a face. OUT is .obj (the still face), "
+                                        ".glb (a still, or an onset-apex-offset animation with --frames; every AU "
+                                        "rides along as a named morph target) or .fap.")
+    group = p.add_mutually_exclusive_group(required=True)
+    group.add_argument("--au", metavar="RECIPE", help="AU intensities, like 6:0.8,12:1.0 (0-1; up to 2 exaggerates; "
+                                                      "12L for one side; FACS letters A-E also work)")
+    group.add_argument("--emotion", metavar="NAME", help="joy, sadness, anger, fear, disgust or surprise")
+    p.add_argument("--intensity", type=float, metavar="X", help="scales an --emotion (default 1; above 1 exaggerates)")
+    p.add_argument("--target", metavar="MESH",
+                   help="the face (.obj, .glb, .ply; default: the avatar of the embedded portrait)")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--points", metavar="POINTS.json", help='control points as {"8.3": vertex id, ...}')
+    group.add_argument("--fdp", metavar="FILE.fdp", help="control points and FAPU from an XfaceEd .fdp file")
+    p.add_argument("--frames", type=int, metavar="N", help="an onset-apex-offset animation of N frames")
+    p.add_argument("--fps", type=float, default=25.0, help="frame rate of the animation (default 25)")
+    p.add_argument("--route", choices=("direct", "generic"), default="direct",
+                   help="direct: muscles on the target itself (default); generic: made on the generic face and "
+                        "projected onto the target")
+    p.add_argument("-o", "--output", required=True, metavar="OUT")
+
+    p = commands.add_parser("aus", help="FACS action-unit intensities of a video, as CSV",
+                            description="Track the face, take head motion out, and fit the muscles' action units "
+                                        "to each frame (bounded least squares). The CSV has OpenFace's columns "
+                                        "(frame, timestamp, success, AU01_r, ...) on its 0-5 scale.")
+    p.add_argument("video", metavar="VIDEO")
+    p.add_argument("-o", "--output", required=True, metavar="AUS.csv")
+    p.add_argument("--neutral", metavar="FRAME|START:END|IMAGE",
+                   help="the face at rest (default: the most relaxed half second, found automatically)")
+    p.add_argument("--no-filter", action="store_true", help="turn the temporal filters off")
+
     p = commands.add_parser("fap-info", help="summarise a .fap file",
                             description="Frames, fps, active FAPs with their ranges, and values outside MPEG-4's.")
     p.add_argument("fap", metavar="FILE.fap")
@@ -107,6 +140,8 @@ def main(argv=None) -> int:
     """Run the command line; returns the exit status."""
     args = _parser().parse_args(argv)
     from . import pipeline
+
+    warnings.formatwarning = lambda message, *_, **__: f"faceanim: warning: {message}\n"
 
     try:
         if args.command == "transfer":
@@ -167,6 +202,16 @@ def main(argv=None) -> int:
                 pass
             finally:
                 server.close()
+        elif args.command == "express":
+            fields, made = pipeline.express(args.output, au=args.au, emotion=args.emotion, intensity=args.intensity,
+                                            target_mesh=args.target, points=args.points, fdp=args.fdp,
+                                            frames=args.frames, fps=args.fps, route=args.route)
+            from .synth.facs import recipe_text
+
+            print(f"wrote {args.output}: AUs {recipe_text(made)}" + (f", {len(fields)} frames" if args.frames else ""))
+        elif args.command == "aus":
+            numbers, values = pipeline.aus(args.video, args.output, neutral=args.neutral, smoothing=not args.no_filter)
+            print(f"wrote {args.output}: {len(values)} frames, {len(numbers)} action units")
         elif args.command == "fap-info":
             print(pipeline.fap_info(args.fap))
     except (InputError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:

@@ -17,7 +17,7 @@ from ..geometry.topology import boundary_loops
 from .landmarks import FEATURE_POINT_LANDMARK
 from .metric import canonical_face, metric_geometry
 
-__all__ = ["AVATAR_PARTS", "face_from_landmarks", "avatar_points"]
+__all__ = ["AVATAR_PARTS", "face_from_landmarks", "avatar_points", "opened_triangles"]
 
 # The openings of the canonical mesh, as MediaPipe's contours of the lid margins and inner lips.
 _EYE_OPENINGS = {
@@ -68,7 +68,7 @@ def face_from_landmarks(landmarks, image: np.ndarray, *, subdivisions: int = 2, 
     metric, _ = metric_geometry(points, width, height)
     pixels = points[:, :2] * [width, height]
 
-    triangles = _opened(canonical_face().triangles)
+    triangles = opened_triangles(canonical_face().triangles)
     vertices, skin = trimesh.remesh.subdivide_loop(metric[:468], triangles, iterations=subdivisions)
     # Loop subdivision is linear in the vertex values, so subdividing the pixel positions gives each new
     # vertex the photo position that matches its 3D position's smoothing.
@@ -108,7 +108,7 @@ def avatar_points(mesh: Mesh) -> dict:
     return points
 
 
-def _opened(triangles: np.ndarray) -> np.ndarray:
+def opened_triangles(triangles: np.ndarray) -> np.ndarray:
     """The canonical triangles without those spanning the eye and mouth openings."""
     keep = np.ones(len(triangles), dtype=bool)
     for contour in (*_EYE_OPENINGS.values(), _MOUTH_OPENING):

@@ -31,7 +31,8 @@ class MorphSet:
     """Morph targets of a mesh and, optionally, their weights over time.
 
     ``targets (K, V, 3)`` displacements, ``names`` (K,), ``weights (T, K)`` or None (a still mesh with
-    sliders), ``fps`` for the weights.
+    sliders), ``fps`` for the weights, ``default_weights (K,)`` the weights a viewer shows without
+    animation (zeros when not given: the rest shape).
     """
 
     targets: np.ndarray
@@ -39,6 +40,7 @@ class MorphSet:
     weights: np.ndarray | None = None
     fps: float = 25.0
     max_error: float = field(default=0.0)
+    default_weights: np.ndarray | None = None
 
     def __post_init__(self):
         targets = as_array(self.targets, "targets", shape=("K", "V", 3))
@@ -47,6 +49,9 @@ class MorphSet:
         if self.weights is not None:
             weights = as_array(self.weights, "weights", shape=("T", len(targets)), min_length=1)
             object.__setattr__(self, "weights", weights)
+        if self.default_weights is not None:
+            object.__setattr__(self, "default_weights",
+                               as_array(self.default_weights, "default_weights", shape=(len(targets),)))
         object.__setattr__(self, "targets", targets)
         object.__setattr__(self, "names", tuple(self.names))
 
@@ -164,7 +169,8 @@ def write_glb(path, mesh: Mesh, morphs: MorphSet | None = None, *, name: str = "
             accessor = buffer.add(target[split.source_vertex], kind="VEC3", component=_FLOAT, target=_ARRAY_BUFFER,
                                   with_bounds=True)
             primitive.targets.append({"POSITION": accessor})
-        gltf_mesh.weights = [0.0] * len(morphs.names)
+        rest = morphs.default_weights
+        gltf_mesh.weights = [0.0] * len(morphs.names) if rest is None else [float(w) for w in rest]
         gltf_mesh.extras["targetNames"] = list(morphs.names)
     gltf.meshes.append(gltf_mesh)
     gltf.nodes.append(g.Node(mesh=0, name=name))

@@ -16,7 +16,7 @@ import numpy as np
 from .face import MuscleFace
 from .facs import MOVERS, muscle_activations
 
-__all__ = ["expression_field", "synthesise", "au_fields", "crossings", "CONTACT_PAIRS"]
+__all__ = ["expression_field", "synthesise", "au_fields", "crossings", "resolve_contact", "CONTACT_PAIRS"]
 
 # Feature points that face each other across an opening (upper, lower): the lids and the inner lips.
 CONTACT_PAIRS = (("3.1", "3.3"), ("3.2", "3.4"), ("2.2", "2.3"), ("2.6", "2.8"), ("2.7", "2.9"))
@@ -48,11 +48,46 @@ def crossings(face: MuscleFace, field: np.ndarray) -> list[str]:
     return crossed
 
 
+def _overlap(face: MuscleFace, field: np.ndarray, pairs) -> float:
+    """How far (model units, along the face's up axis) the worst of ``pairs`` has crossed."""
+    worst = 0.0
+    up = face.axes[1]
+    for upper, lower in pairs:
+        if upper not in face.target.points or lower not in face.target.points:
+            continue
+        i, j = face.target.points[upper], face.target.points[lower]
+        rest = (face.mesh.vertices[i] - face.mesh.vertices[j]) @ up
+        moved = (face.mesh.vertices[i] + field[i] - face.mesh.vertices[j] - field[j]) @ up
+        worst = max(worst, min(rest, 0.0) - moved)
+    return worst
+
+
+def resolve_contact(face: MuscleFace, field: np.ndarray) -> np.ndarray:
+    """``field`` with lips and lids that were pushed through each other stopped where they meet.
+
+    Lips already together cannot close further (pressing, a raised chin or a clenched jaw only
+    squeeze them): the lower lip's layer (the jaw's weight field) is moved back down by the overlap.
+    A lid closed past the other is moved back up over the upper lid's weight field.
+    """
+    out = field.copy()
+    up = face.axes[1]
+    lips = _overlap(face, out, CONTACT_PAIRS[2:])
+    if lips > 0:
+        out[face.skin_ids] -= lips * face.jaw_weight[:, None] * up
+    for side, pair in (("L", CONTACT_PAIRS[0]), ("R", CONTACT_PAIRS[1])):
+        lid = _overlap(face, out, (pair,))
+        if lid > 0:
+            out[face.skin_ids] += lid * face.lid_weight(side, "upper")[:, None] * up
+    return out
+
+
 def synthesise(face: MuscleFace, recipe: dict, *, guard: bool = True) -> tuple[np.ndarray, dict]:
     """The displacement field of ``recipe`` and the recipe actually made.
 
     With ``guard``, intensities above 1 that would push a lid or lip through its partner (see
-    :func:`crossings`) are scaled back toward 1 (bisection on the excess) and a warning says so.
+    :func:`crossings`) are scaled back toward 1 (bisection on the excess) and a warning says so;
+    what still overlaps at the normal range (lips pressed that were already together) is stopped at
+    contact (:func:`resolve_contact`).
     """
     field = expression_field(face, recipe)
     if not guard or not crossings(face, field):
@@ -64,8 +99,8 @@ def synthesise(face: MuscleFace, recipe: dict, *, guard: bool = True) -> tuple[n
         return {k: base[k] + s * excess[k] for k in recipe}
 
     low, high = 0.0, 1.0
-    if crossings(face, expression_field(face, base)):
-        return field, dict(recipe)  # within the normal range already: nothing to take back
+    if crossings(face, expression_field(face, base)):  # crossing within the normal range: contact, not excess
+        return resolve_contact(face, field), dict(recipe)
     for _ in range(12):
         mid = 0.5 * (low + high)
         if crossings(face, expression_field(face, scaled(mid))):

@@ -35,8 +35,8 @@ Places = tuple  # ((feature point, weight), ...)
 
 
 def _cos_falloff(t: np.ndarray) -> np.ndarray:
-    """1 at t <= 0, cos(t pi/2) on (0, 1), 0 at t >= 1."""
-    return np.cos(np.clip(t, 0.0, 1.0) * np.pi / 2)
+    """1 at t <= 0, cos(t pi/2) on (0, 1), exactly 0 at t >= 1."""
+    return np.where(t >= 1.0, 0.0, np.cos(np.clip(t, 0.0, 1.0) * np.pi / 2))
 
 
 def _layer(face: MuscleFace, layer: str) -> np.ndarray:

@@ -1,0 +1,209 @@
+"""The expression jobs: make an AU recipe or an emotion on a face (``express``), and read AU
+intensities from a video (``aus``). Composed from ``synth`` and the other rooms; ``pipeline``
+re-exports both.
+
+Two routes put an expression on a target face:
+
+* ``direct`` (the default): the muscles are placed on the target by its own feature points and
+  act on its own vertices.
+* ``generic``: the seed's route. The expression is made on the generic face (MediaPipe's canonical
+  mesh, :mod:`faceanim.generic`), the generic face is warped onto the target through their shared
+  feature points (thin-plate RBF), each target vertex is projected onto the warped generic surface
+  and takes the displacement at its landing point (:class:`~faceanim.retarget.DenseTransfer`, the
+  P1/P2 projection method done for every vertex at once).
+
+``direct`` is the default because it is measured better: on ICT-FaceKit the generic route loses
+direction wherever the target has more surface than the generic face (the inner lips, the lids'
+folds, the cheeks beyond the canonical outline), see ``benchmarks/facs_ict.py``.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["express", "aus", "expression_recipe", "ROUTES", "slider_codes", "au_fap_table", "expression_motion"]
+
+ROUTES = ("direct", "generic")
+_SUFFIXES = (".obj", ".glb", ".fap")
+
+
+def expression_recipe(*, au=None, emotion=None, intensity=None) -> dict:
+    """The AU recipe asked for by ``--au`` or ``--emotion [--intensity]`` (exactly one of the two)."""
+    from .synth.emotions import emotion_recipe
+    from .synth.facs import parse_recipe
+
+    if (au is None) == (emotion is None):
+        raise InputError("give either --au (like 6:0.8,12:1.0) or --emotion (joy, sadness, anger, fear, disgust, "
+                         "surprise), not both or neither")
+    if au is not None:
+        if intensity is not None:
+            raise InputError("--intensity scales an --emotion; with --au, write each intensity in the recipe")
+        return parse_recipe(au)
+    return emotion_recipe(emotion, 1.0 if intensity is None else intensity)
+
+
+def envelope(frames: int) -> np.ndarray:
+    """Onset-apex-offset weights ``(frames,)``: a smooth rise over the first 30%, the apex held over
+    the middle 40%, a smooth fall over the last 30% (zero at both ends)."""
+    t = np.linspace(0.0, 1.0, frames)
+    rise = np.clip(t / 0.3, 0, 1)
+    fall = np.clip((1 - t) / 0.3, 0, 1)
+    smooth = lambda x: x * x * (3 - 2 * x)  # noqa: E731
+    return np.minimum(smooth(rise), smooth(fall))
+
+
+def slider_codes() -> tuple[str, ...]:
+    """The AU codes a model carries as morph targets: both sides together, except the AUs that need
+    a side (jaw sideways, wink), which come per side."""
+    from .synth.facs import ACTION_UNITS
+
+    return tuple(code for number, au in ACTION_UNITS.items()
+                 for code in ((f"{number}L", f"{number}R") if au.needs_side else (str(number),)))
+
+
+def expression_motion(face, fields: np.ndarray, fps: float):
+    """A :class:`~faceanim.motion.Motion` of the target's control points under displacement
+    ``fields (T, V, 3)``, in the face frame (MPEG-4 axes, origin between the eyes' corners)."""
+    from .motion import Motion
+
+    names = tuple(face.target.points)
+    ids = face.target.ids(names)
+    origin = 0.5 * (face.point("3.7", "L") + face.point("3.7", "R"))
+    neutral = face.local(face.mesh.vertices[ids] - origin)
+    displacements = face.local(fields[:, ids])
+    pose = np.broadcast_to(np.eye(4), (len(fields), 4, 4)).copy()
+    return Motion(names, neutral, displacements, pose, fps, face.target.fapu)
+
+
+def au_fap_table(face, codes, fields) -> dict:
+    """``{"AU12": {"12": value, ...}}``: the FAPs each AU at intensity 1 makes on this face (what
+    the viewer mixes into a ``.fap``)."""
+    from .motion import motion_to_faps
+
+    stream = motion_to_faps(expression_motion(face, fields, 25.0))
+    table = {}
+    for k, code in enumerate(codes):
+        used = stream.mask[k] & (np.abs(stream.values[k]) >= 1)
+        table[f"AU{code}"] = {str(j + 1): int(round(stream.values[k, j])) for j in np.flatnonzero(used)
+                              if j >= 2 and j not in (47, 48, 49)}  # no head rotation in an expression
+    return table
+
+
+def _target_fields(target, recipe, frames, route):
+    """``(T, V, 3)`` displacement of the target per frame (T = 1 for a still) and the recipe made."""
+    from .synth import MuscleFace
+    from .synth.expression import synthesise
+
+    weights = np.ones(1) if frames is None else envelope(frames)
+    face = MuscleFace(target) if route == "direct" else None
+    if route == "generic":
+        from .generic import generic_target
+        from .retarget.transfer import ControlPairs, DenseTransfer
+
+        source = generic_target()
+        shared = [n for n in source.points if n in target.points and not n.startswith("mp")]
+        if len(shared) < 8:
+            raise InputError(f"the generic route needs the target's MPEG-4 feature points; it shares only "
+                             f"{len(shared)} with the generic face")
+        pairs = ControlPairs.checked(source.ids(shared), target.ids(shared), len(source.mesh.vertices),
+                                     len(target.mesh.vertices))
+        carry = DenseTransfer(source.mesh, target.mesh, pairs)
+        face = MuscleFace(source)
+    made = dict(recipe)
+    out = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        for w in weights:
+            field, applied = synthesise(face, {k: v * w for k, v in recipe.items()})
+            if w == weights.max():
+                made = applied
+            out.append(field if route == "direct" else carry(field))
+    limits = [c for c in caught if "exaggeration limited" in str(c.message)]
+    if limits:
+        warnings.warn(str(limits[-1].message), stacklevel=3)
+    return np.stack(out), made, face if route == "direct" else MuscleFace(target)
+
+
+def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, points=None, fdp=None,
+            frames=None, fps: float = 25.0, route: str = "direct", target=None):
+    """``faceanim express``: an AU recipe or an emotion on a target face, written as ``.obj`` (the
+    still face), ``.glb`` (still, or onset-apex-offset over ``frames``; with every AU as a named morph
+    target) or ``.fap``. Returns ``(fields (T, V, 3), recipe made)``."""
+    from .export import MorphSet, morphs_from_animation, write_glb
+    from .geometry import write_mesh
+    from .geometry.animation import Animation
+    from .mpeg4.fapfile import write_fap
+    from .pipeline import load_target
+    from .synth.expression import au_fields
+
+    output = Path(output)
+    if output.suffix.lower() not in _SUFFIXES:
+        raise InputError(f"{output}: an expression is written as {', '.join(_SUFFIXES)}")
+    if not output.parent.exists():
+        raise InputError(f"{output}: the folder {output.parent} does not exist")
+    if route not in ROUTES:
+        raise InputError(f"--route must be one of {', '.join(ROUTES)}, got {route!r}")
+    if frames is not None and (int(frames) != frames or frames < 3):
+        raise InputError(f"--frames must be a whole number of at least 3, got {frames}")
+    if frames is not None and output.suffix.lower() == ".obj":
+        raise InputError(f"{output}: an OBJ holds one still face; write .glb or .fap for --frames")
+    recipe = expression_recipe(au=au, emotion=emotion, intensity=intensity)
+    target = target or load_target(target_mesh, points=points, fdp=fdp)
+    fields, made, face = _target_fields(target, recipe, None if frames is None else int(frames), route)
+    suffix = output.suffix.lower()
+    if suffix == ".obj":
+        write_mesh(output, target.mesh.with_vertices(target.mesh.vertices + fields[0]))
+    elif suffix == ".fap":
+        from .motion import clip_to_range, motion_to_faps
+
+        stream, _ = clip_to_range(motion_to_faps(expression_motion(face, fields, fps), name=output.stem or "faceanim"))
+        write_fap(output, stream)
+    else:
+        codes = slider_codes()
+        sliders = au_fields(face, codes)
+        if frames is None:
+            morphs = MorphSet(np.concatenate([fields, sliders]), ("expression", *(f"AU{c}" for c in codes)),
+                              default_weights=np.r_[1.0, np.zeros(len(codes))])
+        else:
+            animated = morphs_from_animation(Animation(target.mesh, target.mesh.vertices + fields, fps))
+            weights = np.hstack([animated.weights, np.zeros((len(fields), len(codes)))])
+            morphs = MorphSet(np.concatenate([animated.targets, sliders]), (*animated.names, *(f"AU{c}" for c in codes)),
+                              weights, fps)
+        from .synth.facs import recipe_text
+
+        write_glb(output, target.mesh, morphs, extras={"points": target.points, "recipe": recipe_text(made),
+                                                       "au_faps": au_fap_table(face, codes, sliders)})
+    return fields, made
+
+
+def aus(video, output, *, neutral=None, smoothing=True, progress=None):
+    """``faceanim aus``: per-frame FACS AU intensities of a video, as a CSV with OpenFace's column
+    names (``frame, timestamp, success, AU01_r, ...``) on OpenFace's 0-5 scale. Returns
+    ``(AU numbers, (T, A) intensities on the 0-1 scale)``."""
+    from .capture.smoothing import OneEuro, one_euro
+    from .export.curves import write_au_csv
+    from .generic import landmark_target
+    from .pipeline import capture_motion
+    from .synth import MuscleFace
+    from .synth.fitting import AuFitter, bilateral
+
+    output = Path(output)
+    if output.suffix.lower() != ".csv":
+        raise InputError(f"{output}: AU intensities are written as .csv")
+    if not output.parent.exists():
+        raise InputError(f"{output}: the folder {output.parent} does not exist")
+    motion = capture_motion(video, neutral=neutral, smoothing=smoothing, progress=progress)
+    face = MuscleFace(landmark_target(motion.neutral[:468]))
+    fitter = AuFitter(face, motion.names[:468])
+    values = fitter.read_motion(motion)
+    if smoothing:
+        times = np.arange(len(values)) / motion.fps
+        values = np.clip(one_euro(values[:, :, None], times, OneEuro(min_cutoff=2.0, beta=0.5))[:, :, 0], 0, 2)
+    numbers, table = bilateral(fitter.codes, values)
+    write_au_csv(output, numbers, table, motion.fps, motion.valid)
+    return numbers, table
