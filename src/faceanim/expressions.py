@@ -173,8 +173,8 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
         else:
             animated = morphs_from_animation(Animation(target.mesh, target.mesh.vertices + fields, fps))
             weights = np.hstack([animated.weights, np.zeros((len(fields), len(codes)))])
-            morphs = MorphSet(np.concatenate([animated.targets, sliders]), (*animated.names, *(f"AU{c}" for c in codes)),
-                              weights, fps)
+            names = (*animated.names, *(f"AU{c}" for c in codes))
+            morphs = MorphSet(np.concatenate([animated.targets, sliders]), names, weights, fps)
         from .synth.facs import recipe_text
 
         write_glb(output, target.mesh, morphs, extras={"points": target.points, "recipe": recipe_text(made),
