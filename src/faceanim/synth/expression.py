@@ -32,34 +32,28 @@ def expression_field(face: MuscleFace, recipe: dict) -> np.ndarray:
     return field
 
 
-def crossings(face: MuscleFace, field: np.ndarray) -> list[str]:
-    """The contact pairs that ``field`` pushes through each other: upper point below the lower one
-    (along the face's up axis) by more than the tolerance, where at rest it was not."""
-    crossed = []
+def _overlaps(face: MuscleFace, field: np.ndarray, pairs) -> dict[str, float]:
+    """For each of ``pairs`` the target has: how far (model units, along the face's up axis) ``field``
+    has pushed the upper point below the lower one, beyond where it was at rest (<= 0: not crossed)."""
     up = face.axes[1]
-    for upper, lower in CONTACT_PAIRS:
-        if upper not in face.target.points or lower not in face.target.points:
-            continue
-        i, j = face.target.points[upper], face.target.points[lower]
-        rest = (face.mesh.vertices[i] - face.mesh.vertices[j]) @ up
-        moved = (face.mesh.vertices[i] + field[i] - face.mesh.vertices[j] - field[j]) @ up
-        if moved < min(rest, 0.0) - _TOLERANCE * face.unit:
-            crossed.append(f"{upper}/{lower}")
-    return crossed
+    out = {}
+    for upper, lower in pairs:
+        if upper in face.target.points and lower in face.target.points:
+            i, j = face.target.points[upper], face.target.points[lower]
+            rest = (face.mesh.vertices[i] - face.mesh.vertices[j]) @ up
+            moved = rest + (field[i] - field[j]) @ up
+            out[f"{upper}/{lower}"] = min(rest, 0.0) - moved
+    return out
+
+
+def crossings(face: MuscleFace, field: np.ndarray) -> list[str]:
+    """The contact pairs that ``field`` pushes through each other by more than the tolerance."""
+    return [pair for pair, depth in _overlaps(face, field, CONTACT_PAIRS).items() if depth > _TOLERANCE * face.unit]
 
 
 def _overlap(face: MuscleFace, field: np.ndarray, pairs) -> float:
-    """How far (model units, along the face's up axis) the worst of ``pairs`` has crossed."""
-    worst = 0.0
-    up = face.axes[1]
-    for upper, lower in pairs:
-        if upper not in face.target.points or lower not in face.target.points:
-            continue
-        i, j = face.target.points[upper], face.target.points[lower]
-        rest = (face.mesh.vertices[i] - face.mesh.vertices[j]) @ up
-        moved = (face.mesh.vertices[i] + field[i] - face.mesh.vertices[j] - field[j]) @ up
-        worst = max(worst, min(rest, 0.0) - moved)
-    return worst
+    """The deepest crossing among ``pairs`` (0 when none crossed)."""
+    return max([0.0, *_overlaps(face, field, pairs).values()])
 
 
 def resolve_contact(face: MuscleFace, field: np.ndarray) -> np.ndarray:

@@ -169,14 +169,16 @@ class MuscleFace:
         """Skin index of the skin vertex nearest ``position``."""
         return int(np.argmin(((self.skin_vertices - position) ** 2).sum(axis=1)))
 
-    def _pin_points(self, values: dict, anchors=()) -> dict:
+    def _pin_points(self, values: dict, anchors=(), sides=SIDES) -> dict:
+        """Skin index -> value for the named feature points in ``values`` and for the skin vertices
+        nearest the ``anchors`` ``(point, offset, value)`` placed on each of ``sides``."""
         _, index = self._skin_mesh
         pins = {}
         for name, value in values.items():
             if name in self.target.points and index[self.target.points[name]] >= 0:
                 pins[int(index[self.target.points[name]])] = value
         for name, offset, value in anchors:
-            for side in SIDES:
+            for side in sides:
                 if self.has(name, side):
                     pins.setdefault(self.nearest_skin(self.place(((name, 1.0),), offset, side)), value)
         return pins
@@ -199,13 +201,11 @@ class MuscleFace:
             values = {moving: 1.0, still: 0.0, mirror_name("3.7", side): 0.0, mirror_name("3.11", side): 0.0}
             for brow in ("4.1", "4.3", "4.5"):
                 values[mirror_name(brow, side)] = 0.0
-            # The skin a little beyond the moving lid's margin (the fold above, the lid's cheek below)
-            # follows it partly; further out it keeps still.
+            # Skin 0.32 ES0 beyond the moving lid's margin (above the fold, or down on the cheek) keeps
+            # still, so the lid's own skin between follows it part of the way.
             sign = 1.0 if lid == "upper" else -1.0
-            anchors = [("3.1" if lid == "upper" else "3.3", (0.0, sign * 0.32, -0.02), 0.0)]
-            pins = self._pin_points(values)
-            for name, offset, value in anchors:
-                pins.setdefault(self.nearest_skin(self.place(((name, 1.0),), offset, side)), value)
+            beyond = ("3.1" if lid == "upper" else "3.3", (0.0, sign * 0.32, -0.02), 0.0)
+            pins = self._pin_points(values, (beyond,), sides=(side,))
             # A lid is small beside the face: away from its pins the field must die out rather than
             # extrapolate its slope over the forehead.
             cache[(side, lid)] = self._field(pins, falloff=_LID_FALLOFF)

@@ -27,8 +27,8 @@ from pathlib import Path
 from ..errors import InputError
 from .muscles import Gaze, Inflation, LinearMuscle, Rotator, Sphincter, Translator
 
-__all__ = ["ActionUnit", "ACTION_UNITS", "MOVERS", "load_movers", "INTENSITY_LETTERS", "parse_recipe", "recipe_text",
-           "intensity_letter", "au_code", "muscle_activations", "valid_codes"]
+__all__ = ["ActionUnit", "ACTION_UNITS", "MOVERS", "load_movers", "mover_from_spec", "INTENSITY_LETTERS",
+           "parse_recipe", "recipe_text", "muscle_activations", "valid_codes", "check_intensity", "MAX_INTENSITY"]
 
 _MOVER_TYPES = {cls.__name__: cls for cls in (LinearMuscle, Sphincter, Rotator, Gaze, Translator, Inflation)}
 
@@ -112,18 +112,6 @@ def valid_codes() -> str:
     return ", ".join(f"{n}{'(L/R)' if au.sided or au.needs_side else ''}" for n, au in ACTION_UNITS.items())
 
 
-def au_code(number: int, side: str = "") -> str:
-    return f"{number}{side}"
-
-
-def intensity_letter(value: float) -> str:
-    """The FACS letter of an intensity in [0, 1] (values above 1 are E)."""
-    for letter, (_low, high) in INTENSITY_LETTERS.items():
-        if value <= high:
-            return letter
-    return "E"
-
-
 def _split_code(code: str) -> tuple[int, str]:
     match = _CODE.match(code.strip())
     if not match or int(match.group(1)) not in ACTION_UNITS:
@@ -173,7 +161,7 @@ def parse_recipe(text) -> dict[str, float]:
     recipe: dict[str, float] = {}
     for code, value in items:
         number, side = _split_code(str(code))
-        key = au_code(number, side)
+        key = f"{number}{side}"
         if isinstance(value, str):
             if not value.strip():
                 raise InputError(f"AU{key}: give an intensity, like {key}:0.5")
