@@ -75,6 +75,7 @@ def test_express_generic_route_reaches_the_target(tmp_path, avatar):
     (["--au", "12:1", "--intensity", "2"], "--intensity scales an --emotion"),
     (["--au", "12:1", "--frames", "10"], "an OBJ holds one still face"),
     (["--au", "12:1", "--frames", "1"], "--frames must be a whole number of at least 3"),
+    (["--au", "12:1", "--fps", "0"], "--fps must be a positive number"),
 ])
 def test_express_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, args, message):
     out = tmp_path / "x.obj"
@@ -89,6 +90,26 @@ def test_express_refuses_unknown_output_kinds_and_warns_on_exaggeration(tmp_path
     assert "written as .obj, .glb, .fap" in capsys.readouterr().err
     with pytest.warns(UserWarning, match="--intensity for surprise: intensity 1.4 is above 1"):
         assert main(["express", "--emotion", "surprise", "--intensity", "1.4", "-o", str(tmp_path / "s.fap")]) == 0
+
+
+def test_express_and_aus_refuse_outputs_they_cannot_write(tmp_path, capsys):
+    assert main(["express", "--au", "12:1", "-o", str(tmp_path / "missing" / "x.glb")]) == 2
+    assert "the folder" in capsys.readouterr().err
+    assert main(["aus", "any.mp4", "-o", str(tmp_path / "aus.txt")]) == 2
+    assert "AU intensities are written as .csv" in capsys.readouterr().err
+    assert main(["aus", "any.mp4", "-o", str(tmp_path / "missing" / "aus.csv")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_au_csv_has_openface_columns_and_scale(tmp_path):
+    from faceanim.export import write_au_csv
+
+    values = np.array([[0.2, 1.0], [0.5, 0.0], [np.nan, np.nan]])
+    header = write_au_csv(tmp_path / "a.csv", (1, 12), values, 25.0, success=[True, True, False])
+    assert header == ["frame", "timestamp", "success", "AU01_r", "AU12_r"]
+    rows = (tmp_path / "a.csv").read_text().splitlines()
+    assert rows[1:] == ["1,0.000,1,1.00,5.00", "2,0.040,1,2.50,0.00", "3,0.080,0,0.00,0.00"]
 
 
 def _read_aus(path):

@@ -11,6 +11,17 @@ from .errors import InputError
 __all__ = ["main"]
 
 
+def _target_arguments(p) -> None:
+    """``--target MESH`` and where its control points come from (``--points`` or ``--fdp``)."""
+    p.add_argument("--target", metavar="MESH",
+                   help="the face to move (.obj, .glb, .ply; default: the avatar of the embedded portrait)")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--points", metavar="POINTS.json",
+                       help='control points as {"8.3": vertex id, ...} (default: those a faceanim .glb carries, '
+                            'else placed automatically)')
+    group.add_argument("--fdp", metavar="FILE.fdp", help="control points and FAPU from an XfaceEd .fdp file")
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="faceanim", description="The motion of a real face onto any 3D face.")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -58,13 +69,8 @@ def _parser() -> argparse.ArgumentParser:
         p = commands.add_parser(name, help=help_text, description=help_text[0].upper() + help_text[1:] + (
             "; the result is a glTF binary with morph targets and an animation."))
         p.add_argument("source", metavar=source)
-        p.add_argument("--target", metavar="MESH",
-                       help="the face to animate (.obj, .glb, .ply; default: the avatar of the embedded portrait)")
         p.add_argument("-o", "--output", required=True, metavar="OUT.glb")
-        group = p.add_mutually_exclusive_group()
-        group.add_argument("--points", metavar="POINTS.json",
-                           help='control points as {"8.3": vertex id, ...} (default: placed automatically)')
-        group.add_argument("--fdp", metavar="FILE.fdp", help="control points and FAPU from an XfaceEd .fdp file")
+        _target_arguments(p)
         p.add_argument("--preview", metavar="PREVIEW.mp4", help="also render the animation to a video")
         p.add_argument("--head-motion", action="store_true", help="turn the head as the FAPs (48-50) say")
         p.add_argument("--obj-sequence", metavar="DIR", help="also write the animation as numbered OBJ files")
@@ -108,11 +114,7 @@ def _parser() -> argparse.ArgumentParser:
                                                       "12L for one side; FACS letters A-E also work)")
     group.add_argument("--emotion", metavar="NAME", help="joy, sadness, anger, fear, disgust or surprise")
     p.add_argument("--intensity", type=float, metavar="X", help="scales an --emotion (default 1; above 1 exaggerates)")
-    p.add_argument("--target", metavar="MESH",
-                   help="the face (.obj, .glb, .ply; default: the avatar of the embedded portrait)")
-    group = p.add_mutually_exclusive_group()
-    group.add_argument("--points", metavar="POINTS.json", help='control points as {"8.3": vertex id, ...}')
-    group.add_argument("--fdp", metavar="FILE.fdp", help="control points and FAPU from an XfaceEd .fdp file")
+    _target_arguments(p)
     p.add_argument("--frames", type=int, metavar="N", help="an onset-apex-offset animation of N frames")
     p.add_argument("--fps", type=float, default=25.0, help="frame rate of the animation (default 25)")
     p.add_argument("--route", choices=("direct", "generic"), default="direct",

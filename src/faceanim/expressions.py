@@ -20,7 +20,6 @@ lid folds, nothing beyond MediaPipe's outline), and the projection can only carr
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -52,10 +51,8 @@ def envelope(frames: int) -> np.ndarray:
     """Onset-apex-offset weights ``(frames,)``: a smooth rise over the first 30%, the apex held over
     the middle 40%, a smooth fall over the last 30% (zero at both ends)."""
     t = np.linspace(0.0, 1.0, frames)
-    rise = np.clip(t / 0.3, 0, 1)
-    fall = np.clip((1 - t) / 0.3, 0, 1)
-    smooth = lambda x: x * x * (3 - 2 * x)  # noqa: E731
-    return np.minimum(smooth(rise), smooth(fall))
+    ramp = np.minimum(np.clip(t / 0.3, 0, 1), np.clip((1 - t) / 0.3, 0, 1))
+    return ramp * ramp * (3 - 2 * ramp)  # smoothstep
 
 
 def slider_codes() -> tuple[str, ...]:
@@ -95,39 +92,41 @@ def au_fap_table(face, codes, fields) -> dict:
     return table
 
 
+def _generic_carrier(target):
+    """The generic face and the map carrying its displacements onto ``target`` (warp + projection)."""
+    from .generic import generic_target
+    from .retarget.transfer import ControlPairs, DenseTransfer
+    from .synth import MuscleFace
+
+    source = generic_target()
+    shared = [n for n in source.points if n in target.points and not n.startswith("mp")]
+    if len(shared) < 8:
+        raise InputError(f"the generic route needs the target's MPEG-4 feature points; it shares only "
+                         f"{len(shared)} with the generic face")
+    pairs = ControlPairs.checked(source.ids(shared), target.ids(shared), len(source.mesh.vertices),
+                                 len(target.mesh.vertices))
+    return MuscleFace(source), DenseTransfer(source.mesh, target.mesh, pairs)
+
+
 def _target_fields(target, recipe, frames, route):
-    """``(T, V, 3)`` displacement of the target per frame (T = 1 for a still) and the recipe made."""
+    """``(T, V, 3)`` displacement of the target per frame (T = 1 for a still), the recipe made at the
+    apex (after the exaggeration guard, which warns once there), and the target as a muscle face."""
     from .synth import MuscleFace
     from .synth.expression import synthesise
 
-    weights = np.ones(1) if frames is None else envelope(frames)
-    face = MuscleFace(target) if route == "direct" else None
-    if route == "generic":
-        from .generic import generic_target
-        from .retarget.transfer import ControlPairs, DenseTransfer
-
-        source = generic_target()
-        shared = [n for n in source.points if n in target.points and not n.startswith("mp")]
-        if len(shared) < 8:
-            raise InputError(f"the generic route needs the target's MPEG-4 feature points; it shares only "
-                             f"{len(shared)} with the generic face")
-        pairs = ControlPairs.checked(source.ids(shared), target.ids(shared), len(source.mesh.vertices),
-                                     len(target.mesh.vertices))
-        carry = DenseTransfer(source.mesh, target.mesh, pairs)
-        face = MuscleFace(source)
-    made = dict(recipe)
-    out = []
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        for w in weights:
-            field, applied = synthesise(face, {k: v * w for k, v in recipe.items()})
-            if w == weights.max():
-                made = applied
-            out.append(field if route == "direct" else carry(field))
-    limits = [c for c in caught if "exaggeration limited" in str(c.message)]
-    if limits:
-        warnings.warn(str(limits[-1].message), stacklevel=3)
-    return np.stack(out), made, face if route == "direct" else MuscleFace(target)
+    target_face = MuscleFace(target)
+    if route == "direct":
+        face, carry = target_face, None
+    else:
+        face, carry = _generic_carrier(target)
+    apex, made = synthesise(face, recipe)
+    if frames is None:
+        fields = [apex]
+    else:  # every frame made, not blended, so the jaw and lids turn on arcs
+        fields = [synthesise(face, {k: v * w for k, v in made.items()})[0] for w in envelope(frames)]
+    if carry is not None:
+        fields = [carry(field) for field in fields]
+    return np.stack(fields), made, target_face
 
 
 def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, points=None, fdp=None,
@@ -149,6 +148,8 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
         raise InputError(f"{output}: the folder {output.parent} does not exist")
     if route not in ROUTES:
         raise InputError(f"--route must be one of {', '.join(ROUTES)}, got {route!r}")
+    if not np.isfinite(fps) or fps <= 0:
+        raise InputError(f"--fps must be a positive number, got {fps}")
     if frames is not None and (int(frames) != frames or frames < 3):
         raise InputError(f"--frames must be a whole number of at least 3, got {frames}")
     if frames is not None and output.suffix.lower() == ".obj":

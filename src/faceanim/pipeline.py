@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FileFormatError, InputError
+from .expressions import aus, express  # the expression jobs live in their own module; re-exported here
 from .geometry import read_mesh, write_mesh
 from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
 
@@ -392,17 +393,3 @@ def view(model, *, video=None, fap=None, port: int = 8765):
                 raise InputError(f"{video}: holds no frames")
     curves = fap_curves(read_fap(fap)) if fap is not None else None
     return ViewerServer(ViewerFiles(model, video, curves, title=model.stem), port=int(port))
-
-
-def express(output, **options):
-    """``faceanim express``: see :func:`faceanim.expressions.express`."""
-    from .expressions import express as job
-
-    return job(output, **options)
-
-
-def aus(video, output, **options):
-    """``faceanim aus``: see :func:`faceanim.expressions.aus`."""
-    from .expressions import aus as job
-
-    return job(video, output, **options)

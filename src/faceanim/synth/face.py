@@ -18,6 +18,8 @@ from __future__ import annotations
 from functools import cached_property
 
 import numpy as np
+from scipy import sparse
+from scipy.sparse import csgraph
 
 from ..errors import InputError
 from ..geometry.mesh import Mesh
@@ -217,13 +219,30 @@ class MuscleFace:
         return corners + self.vector((0.0, 0.0, -0.19), side)
 
     def eyeball_vertices(self, side: str) -> np.ndarray:
-        """Mesh vertex ids of the eyeball on ``side``: the parts off the skin whose centre lies within
-        0.15 ES0 of the eye centre (none on a face without separate eyeballs)."""
-        labels = component_labels(self.mesh)
+        """Mesh vertex ids of the eyeball on ``side``: of the pieces off the skin (connected through
+        off-skin vertices, so an eye part stitched to the lids still counts), the one whose centre is
+        nearest the eye's, if within half the eye's width, and any other piece as near as it give or
+        take 0.15 eye widths (a sclera and an iris modelled apart); lashes and the like sit farther out.
+        None on a face without eyeballs."""
+        pieces = self._off_skin_pieces
+        if not len(pieces):
+            return np.zeros(0, dtype=np.int64)
+        corners = (self.point("3.7", side), self.point("3.11", side))
+        reach = 0.5 * np.linalg.norm(corners[0] - corners[1])
         centre = self.eye_centre(side)
-        ids = []
-        for part in np.unique(labels[~self.skin]):
-            members = np.flatnonzero((labels == part) & ~self.skin)
-            if np.linalg.norm(self.mesh.vertices[members].mean(axis=0) - centre) < 0.15 * self.unit:
-                ids.append(members)
-        return np.concatenate(ids) if ids else np.zeros(0, dtype=np.int64)
+        distance = [np.linalg.norm(self.mesh.vertices[ids].mean(axis=0) - centre) for ids in pieces]
+        nearest = min(distance)
+        chosen = [ids for ids, d in zip(pieces, distance, strict=True) if d < min(reach, nearest + 0.3 * reach)]
+        return np.concatenate(chosen) if chosen else np.zeros(0, dtype=np.int64)
+
+    @cached_property
+    def _off_skin_pieces(self) -> list[np.ndarray]:
+        off = np.flatnonzero(~self.skin)
+        if not len(off):
+            return []
+        e = self.mesh.edges
+        e = e[~self.skin[e[:, 0]] & ~self.skin[e[:, 1]]]
+        V = len(self.mesh.vertices)
+        graph = sparse.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(V, V))
+        labels = csgraph.connected_components(graph, directed=False)[1]
+        return [off[labels[off] == k] for k in np.unique(labels[off])]
