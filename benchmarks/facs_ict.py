@@ -31,11 +31,11 @@ from ict_scenario import FACE_VERTICES, ICT, _farthest_points, ict_available, lo
 from report import publish  # noqa: E402
 
 from faceanim.mpeg4.multipie import MULTIPIE68_OF_FEATURE_POINT  # noqa: E402
-from faceanim.retarget.target import Target  # noqa: E402
 from faceanim.synth.expression import expression_field  # noqa: E402
 from faceanim.synth.face import MuscleFace  # noqa: E402
 from faceanim.synth.facs import ACTION_UNITS  # noqa: E402
 from faceanim.synth.fitting import AuFitter  # noqa: E402
+from faceanim.target import Target  # noqa: E402
 
 DENSE = 500
 

@@ -10,7 +10,7 @@ from faceanim.mpeg4 import FAP_COUNT, Fapu, fap_table
 from faceanim.mpeg4.fapfile import read_fap
 from faceanim.mpeg4.fapstream import FapStream
 from faceanim.retarget.decode import animate_faps, fap_displacements, held
-from faceanim.retarget.target import Target, target_from_fdp, target_from_json
+from faceanim.target import Target, target_from_fdp, target_from_json
 
 TABLE = fap_table()
 

@@ -14,13 +14,13 @@ from faceanim.expressions import au_fap_table, envelope, expression_motion
 from faceanim.generic import generic_target
 from faceanim.motion import motion_to_faps
 from faceanim.mpeg4 import fap_table
-from faceanim.retarget.target import Target
 from faceanim.synth import MuscleFace, expression_field, synthesise
 from faceanim.synth.emotions import EMOTIONS, emotion_recipe
 from faceanim.synth.expression import crossings
 from faceanim.synth.facs import ACTION_UNITS, MOVERS, muscle_activations, parse_recipe, recipe_text
 from faceanim.synth.fitting import AuFitter, bilateral
 from faceanim.synth.muscles import LinearMuscle, Sphincter
+from faceanim.target import Target
 
 REQUIRED = (1, 2, 4, 5, 6, 7, 9, 10, 12, 14, 15, 16, 17, 18, 20, 22, 23, 24, 25, 26, 27, 43, 45, 46)
 

@@ -15,7 +15,7 @@ from .capture.avatar import opened_triangles
 from .capture.headframe import landmark_names
 from .capture.metric import canonical_face
 from .geometry.mesh import Mesh
-from .retarget.target import Target
+from .target import Target
 from .validation import as_array
 
 __all__ = ["generic_target", "landmark_target"]

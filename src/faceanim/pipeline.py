@@ -226,7 +226,7 @@ def load_target(mesh_path=None, *, points=None, fdp=None):
     from .geometry.meshio import glb_extras
     from .portrait import avatar_target
     from .retarget.placement import auto_target
-    from .retarget.target import Target, target_from_fdp, target_from_json
+    from .target import Target, target_from_fdp, target_from_json
 
     if points is not None and fdp is not None:
         raise InputError("give the control points once: --points or --fdp, not both")
@@ -316,7 +316,7 @@ def _preview(path, animation, target, *, source_frames=None, size: int = 480) ->
 def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview=None, head_motion=False,
            target=None, obj_sequence=None, csv=None):
     """``faceanim decode``: a ``.fap`` file onto a target mesh, written as an animated ``.glb``.
-    ``target``, a ready :class:`~faceanim.retarget.Target`, stands in for the mesh and its points."""
+    ``target``, a ready :class:`~faceanim.target.Target`, stands in for the mesh and its points."""
     from .mpeg4.fapfile import read_fap
     from .retarget.decode import animate_faps
 
@@ -335,7 +335,7 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
 def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=None, fap=None, head_motion=False,
             progress=None, neutral=None, target=None, obj_sequence=None, csv=None):
     """``faceanim animate``: a video of a face drives a target mesh, through MPEG-4 FAPs. ``target``, a
-    ready :class:`~faceanim.retarget.Target`, stands in for the mesh and its points."""
+    ready :class:`~faceanim.target.Target`, stands in for the mesh and its points."""
     from .capture.headframe import head_frame, track_to_motion
     from .capture.neutral import parse_neutral
     from .capture.overlay import overlay_frames

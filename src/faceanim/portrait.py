@@ -1,5 +1,5 @@
 """Portraits and the avatars made from them: the embedded portrait, the tracker's landmarks on a photo,
-and a ready :class:`~faceanim.retarget.Target` built from both (composed from ``capture`` and
+and a ready :class:`~faceanim.target.Target` built from both (composed from ``capture`` and
 ``retarget``, like the jobs in :mod:`faceanim.pipeline`)."""
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def avatar_target(photo=None, *, image=None, landmarks=None, subdivisions: int =
     """A Target made from a portrait (see :func:`portrait`): the tracker's face mesh, textured from it.
     ``image`` (and its ``landmarks``, when already tracked) stand in for a file."""
     from .capture.avatar import avatar_points, face_from_landmarks
-    from .retarget.target import Target
+    from .target import Target
 
     image, name = (image, "image") if image is not None else portrait(photo)
     if landmarks is None:

@@ -8,7 +8,7 @@ from ..geometry.animation import Animation
 from ..motion import JAW_CARRIED
 from ..mpeg4 import ANGLE_UNIT, fap_table, feature_points
 from ..mpeg4.fapstream import FapStream
-from .target import Target
+from ..target import Target
 from .transfer import SparseTransfer
 
 __all__ = ["fap_displacements", "animate_faps", "held"]

@@ -16,7 +16,7 @@ from ..geometry.mesh import Mesh
 from ..geometry.project import project_points
 from ..geometry.topology import component_labels
 from ..render.camera import front_camera
-from .target import Target, measure_fapu
+from ..target import Target, measure_fapu
 
 __all__ = ["place_landmarks", "auto_target"]
 

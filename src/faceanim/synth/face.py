@@ -25,7 +25,7 @@ from ..errors import InputError
 from ..geometry.mesh import Mesh
 from ..geometry.surface import BiharmonicInterpolation
 from ..geometry.topology import component_labels
-from ..retarget.target import Target
+from ..target import Target
 
 __all__ = ["MuscleFace", "mirror_name", "SIDES"]
 

@@ -1,4 +1,8 @@
-"""`Target`: a mesh to animate, where its control points sit on it, and its FAPU."""
+"""`Target`: a mesh to animate, where its control points sit on it, and its FAPU.
+
+Part of the shared vocabulary (like `Motion`), so it lives at the top of the package: retargeting
+decodes onto a Target, the muscles of ``synth`` are placed by its feature points, placement makes one.
+"""
 
 from __future__ import annotations
 
@@ -9,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError, InputError
-from ..geometry.mesh import Mesh
-from ..mpeg4 import Fapu, fapu_from_points, feature_points
+from .errors import FileFormatError, InputError
+from .geometry.mesh import Mesh
+from .mpeg4 import Fapu, fapu_from_points, feature_points
 
 __all__ = ["Target", "target_from_json", "target_from_fdp"]
 
