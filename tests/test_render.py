@@ -89,6 +89,31 @@ def test_part_colours_and_hidden_parts(renderer):
     assert hidden[32, 66].tolist() == [255, 255, 255]  # the overlay part is not drawn
 
 
+def test_vertex_colours_paint_the_mesh_and_named_parts_keep_theirs(renderer):
+    left = np.array([[-1.0, -0.5, 0], [-0.1, -0.5, 0], [-0.1, 0.5, 0], [-1.0, 0.5, 0]])
+    both = Mesh(np.r_[left, left * [-1, 1, 1]], [[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6]], parts=[0, 0, 1, 1],
+                part_names=("skin", "eye"))
+    paint = np.array([[0, 255, 0]] * 4 + [[0, 0, 255]] * 4, dtype=np.uint8)
+    camera = Camera(look_at([0, 0, 4], [0, 0, 0]), 30.0, 96, 64)
+    image = renderer.render(both, camera, vertex_colours=paint, part_colours={"eye": (255, 0, 0)})
+    assert image[32, 30].argmax() == 1  # the painted part shows its paint (green)
+    assert image[32, 66].argmax() == 0  # the part named in part_colours keeps its colour (red)
+    with pytest.raises(ValueError, match=r"vertex_colours must have shape \(8, 3\)"):
+        renderer.render(both, camera, vertex_colours=paint[:4])
+
+
+def test_light_from_above_shades_upward_faces_brighter(renderer):
+    # two strips tilted 45 degrees, one facing up and toward the camera, one facing down and toward it
+    up = np.array([[-1.0, 0.1, 0], [1.0, 0.1, 0], [1.0, 0.6, -0.5], [-1.0, 0.6, -0.5]])
+    down = np.array([[-1.0, -0.1, 0], [1.0, -0.1, 0], [1.0, -0.6, -0.5], [-1.0, -0.6, -0.5]])
+    mesh = Mesh(np.r_[up, down], [[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6]])
+    camera = Camera(look_at([0, 0, 4], [0, 0, 0]), 30.0, 96, 64)
+    frontal = renderer.render(mesh, camera).astype(int)
+    assert abs(frontal[24, 48].sum() - frontal[40, 48].sum()) < 6  # lit from the camera: both alike
+    above = renderer.render(mesh, camera, light=(0.0, 1.0, 0.0)).astype(int)
+    assert above[24, 48].sum() > above[40, 48].sum() + 100  # lit from above: the upward strip is brighter
+
+
 def test_unproject_inverts_project():
     camera = Camera(look_at([0.3, 0.2, 5], [0, 0, 0]), 35.0, 96, 64)
     points = np.random.default_rng(0).normal(size=(20, 3))

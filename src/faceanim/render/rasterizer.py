@@ -21,11 +21,14 @@ _VERTEX = """
 uniform mat4 clip_from_world;
 in vec3 position;
 in vec2 uv;
+in vec3 paint;
 out vec3 world;
 out vec2 texcoord;
+out vec3 painted;
 void main() {
     world = position;
     texcoord = uv;
+    painted = paint;
     gl_Position = clip_from_world * vec4(position, 1.0);
 }
 """
@@ -33,15 +36,19 @@ _FRAGMENT = """
 #version 330
 uniform sampler2D image;
 uniform bool use_texture;
+uniform bool use_paint;
 uniform vec3 colour;
 uniform vec3 light;
+uniform vec3 eye;
 in vec3 world;
 in vec2 texcoord;
+in vec3 painted;
 out vec4 result;
 void main() {
     vec3 normal = normalize(cross(dFdx(world), dFdy(world)));
-    float diffuse = abs(dot(normal, light));
-    vec3 base = use_texture ? texture(image, texcoord).rgb : colour;
+    if (dot(normal, eye - world) < 0.0) normal = -normal;  // two-sided: every surface seen faces the eye
+    float diffuse = max(dot(normal, light), 0.0);
+    vec3 base = use_texture ? texture(image, texcoord).rgb : (use_paint ? painted : colour);
     result = vec4(base * (0.35 + 0.65 * diffuse), 1.0);
 }
 """
@@ -95,20 +102,25 @@ class Renderer:
                                     depth_attachment=ctx.depth_renderbuffer((width, height)))
         self._mesh_program = ctx.program(vertex_shader=_VERTEX, fragment_shader=_FRAGMENT)
         self._edge_program = ctx.program(vertex_shader=_VERTEX.replace("out vec2 texcoord;", "").replace(
-            "texcoord = uv;", ""), fragment_shader=_EDGE)
+            "texcoord = uv;", "").replace("out vec3 painted;", "").replace("painted = paint;", ""),
+            fragment_shader=_EDGE)
         self._quad_program = ctx.program(vertex_shader=_QUAD_VERTEX, fragment_shader=_QUAD_FRAGMENT)
         corners = np.array([-1, -1, 1, -1, 1, 1, -1, -1, 1, 1, -1, 1], dtype="f4")
         self._quad = ctx.vertex_array(self._quad_program, [(ctx.buffer(corners.tobytes()), "2f", "corner")])
 
     def render(self, mesh: Mesh, camera: Camera, *, positions=None, mode: str = "shaded",
                colour=(200, 170, 150), background: np.ndarray | None = None, depth: bool = False,
-               part_colours: dict | None = None):
+               part_colours: dict | None = None, light=(0.0, 0.0, 1.0), vertex_colours=None):
         """Draw ``mesh`` (at ``positions (V, 3)`` if given) seen by ``camera``.
 
         ``part_colours`` maps part names (``mesh.part_names``, OBJ materials) to RGB colours for the
         shaded mode, or to None to leave a part out (a see-through overlay mesh); parts not named take
         ``colour``.
+        ``vertex_colours``: ``(V, 3)`` uint8 RGB per vertex for the shaded mode (paint on a mesh
+        without a texture), blended across each triangle; parts ``part_colours`` names keep theirs.
         ``background``: an ``(height, width, 3)`` uint8 image drawn behind the mesh (an overlay).
+        ``light``: the direction the light comes from, in the camera's frame (+x right, +y up, +z
+        toward the viewer); the default lights the face from the camera.
         With ``depth=True`` also returns ``(height, width)`` float64 distances along the camera's
         viewing axis (inf where no surface is seen): ``(image, depth)``.
         """
@@ -143,14 +155,23 @@ class Renderer:
             self._quad.render()
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.depth_func = "<="
-        data = np.c_[vertices, uv].astype("f4")
+        paint = np.zeros((len(vertices), 3))
+        if vertex_colours is not None:
+            given = np.asarray(vertex_colours)
+            if given.shape != (len(mesh.vertices), 3):
+                raise ValueError(f"vertex_colours must have shape ({len(mesh.vertices)}, 3), got {given.shape}")
+            paint = given[split.source_vertex] / 255.0
+        data = np.c_[vertices, uv, paint].astype("f4")
         vbo = ctx.buffer(data.tobytes())
         ibo = ctx.buffer(split.triangles.astype("i4").tobytes())
         resources += [vbo, ibo]
         program = self._mesh_program
         program["clip_from_world"].write(clip.T.tobytes())
         program["colour"].value = tuple(np.asarray(colour, dtype=np.float64) / 255.0)
-        program["light"].value = tuple(camera.world_to_camera[2, :3])  # from the camera
+        rotation = camera.world_to_camera[:3, :3]
+        toward_light = np.asarray(light, dtype=np.float64)
+        program["light"].value = tuple(rotation.T @ (toward_light / np.linalg.norm(toward_light)))
+        program["eye"].value = tuple(np.linalg.inv(camera.world_to_camera)[:3, 3])
         program["use_texture"].value = bool(textured)
         if textured:
             image = ctx.texture((mesh.texture.shape[1], mesh.texture.shape[0]), 3,
@@ -159,25 +180,27 @@ class Renderer:
             resources.append(image)
             image.use(1)
             program["image"].value = 1
-        groups = [(split.triangles, colour)]
+        painted = vertex_colours is not None
+        groups = [(split.triangles, colour, painted)]
         if part_colours and mesh.parts is not None and not textured:
             groups = []
             for index, name in enumerate(mesh.part_names):
                 chosen = split.triangles[mesh.parts == index]
                 rgb = part_colours.get(name, colour)
                 if len(chosen) and rgb is not None:
-                    groups.append((chosen, rgb))
-        for triangles, rgb in groups:
+                    groups.append((chosen, rgb, painted and name not in part_colours))
+        for triangles, rgb, use_paint in groups:
             part_ibo = ibo if triangles is split.triangles else ctx.buffer(triangles.astype("i4").tobytes())
             if part_ibo is not ibo:
                 resources.append(part_ibo)
             program["colour"].value = tuple(np.asarray(rgb, dtype=np.float64) / 255.0)
-            array = ctx.vertex_array(program, [(vbo, "3f 2f", "position", "uv")], part_ibo)
+            program["use_paint"].value = use_paint
+            array = ctx.vertex_array(program, [(vbo, "3f 2f 3f", "position", "uv", "paint")], part_ibo)
             resources.append(array)
             array.render(moderngl.TRIANGLES)
         if mode == "wireframe":
             self._edge_program["clip_from_world"].write(clip.T.tobytes())
-            edges = ctx.vertex_array(self._edge_program, [(vbo, "3f 8x", "position")], ibo)
+            edges = ctx.vertex_array(self._edge_program, [(vbo, "3f 20x", "position")], ibo)
             resources.append(edges)
             ctx.wireframe = True
             ctx.polygon_offset = (-1.0, -1.0)
