@@ -2,10 +2,9 @@
 
     python benchmarks/placement_ict.py
 
-The untextured ICT head is rendered, MediaPipe's face mesh runs on the render, its points are cast
-back onto the surface (``faceanim.retarget.placement``) and mapped to the 68-point layout; the table
-gives the distance (cm) of each group from ICT's landmark vertices, and, for comparison, the same in
-pixels of the render before casting back (how far MediaPipe's own points are from ICT's).
+The untextured ICT head is rendered (lit from above), MediaPipe's face mesh runs on the render, its
+points are cast back onto the surface (``faceanim.retarget.placement``) and mapped to the 68-point
+layout; the table gives the distance (cm) of each group from ICT's landmark vertices.
 """
 
 from __future__ import annotations

@@ -20,39 +20,58 @@ from ..target import Target, measure_fapu
 
 __all__ = ["place_landmarks", "auto_target"]
 
+# Light from above and in front, as a room lights a face: the brow ridge, lids and lips cast the shading
+# the tracker expects. Lit from the camera, an untextured face has flat eye sockets, and MediaPipe
+# placed the ICT neutral's brows and upper lids 0.9 cm too low (benchmarks/placement_ict.py).
+_LIGHT = (0.0, 1.0, 1.0)
+_UPPER_INNER_LIP = (191, 80, 81, 82, 13, 312, 311, 310, 415)
+_LOWER_INNER_LIP = (95, 88, 178, 87, 14, 317, 402, 318, 324)
+_IRIS_START = 468  # 468-472 and 473-477: the irises
 _MIRROR_PAIRS = ((33, 263), (133, 362), (61, 291), (70, 300), (234, 454), (159, 386), (145, 374))
 
 
 def _track_render(mesh, camera, renderer, tracker):
-    image, depth = renderer.render(mesh, camera, depth=True)
+    """The face MediaPipe finds in a render: pixels ``(478, 2)``, its relative depths ``(478,)`` in
+    pixels (MediaPipe's z, which shares the x axis's scale), and the render's depth buffer."""
+    image, depth = renderer.render(mesh, camera, depth=True, light=_LIGHT)
     faces = tracker.all_faces(image)
     if not faces:
         return None
     face = max(faces, key=lambda f: np.prod(np.ptp(f[:, :2], axis=0)))
-    pixels = face[:, :2] * [camera.width, camera.height]
-    return pixels, depth
+    return face[:, :2] * [camera.width, camera.height], face[:, 2] * camera.width, depth
 
 
-def _surface_points(pixels, depth, camera):
-    """World points behind landmark pixels; points on the silhouette take the nearest surface seen."""
+def _surface_points(pixels, relative, depth, camera):
+    """World points behind landmark pixels.
+
+    Most points take the depth buffer's distance. A point on the face's outline (the jaw, the cheek
+    by the ear) sits where the surface turns away, and the buffer there gives the ear, the neck or
+    nothing; such a point takes the distance MediaPipe's own depth predicts instead (a line fitted
+    from its relative depths to the buffer's over the points where the two agree).
+    """
     H, W = depth.shape
     cols = np.clip(np.round(pixels[:, 0] - 0.5).astype(int), 0, W - 1)
     rows = np.clip(np.round(pixels[:, 1] - 0.5).astype(int), 0, H - 1)
-    distance = depth[rows, cols]
-    for radius in (1, 2, 4, 8):  # landmarks on the face's outline can fall just off the surface
-        missing = ~np.isfinite(distance)
-        if not missing.any():
-            break
-        for i in np.flatnonzero(missing):
-            window = depth[max(rows[i] - radius, 0):rows[i] + radius + 1, max(cols[i] - radius, 0):cols[i] + radius + 1]
-            distance[i] = window.min()
-    if not np.isfinite(distance).all():
-        raise InputError("automatic placement: some face points do not lie on the mesh")
+    seen = depth[rows, cols]
+    usable = np.isfinite(seen)
+    if usable.sum() < 0.5 * len(seen):
+        raise InputError("automatic placement: the face points found do not lie on the mesh")
+    # distance = a + b * relative, with b the world size of a pixel at the face over the focal
+    # length's worth of pixels; refit without the points that disagree (outline points).
+    for _ in range(3):
+        b, a = np.polyfit(relative[usable], seen[usable], 1)
+        residual = np.where(np.isfinite(seen), np.abs(seen - (a + b * relative)), np.inf)
+        spread = 1.4826 * np.median(residual[usable])
+        usable = residual <= max(3.0 * spread, 1e-9)
+    predicted = a + b * relative
+    tolerance = 4.0 * max(spread, 1e-9)
+    distance = np.where(residual <= tolerance, seen, predicted)
     return camera.unproject(pixels, distance)
 
 
 def place_landmarks(mesh: Mesh, *, size: int = 512, yaws=(0.0, -12.0, 12.0)) -> np.ndarray:
-    """Vertex ids ``(478,)`` of MediaPipe's face-mesh points on ``mesh`` (a face looking along +z, +y up).
+    """Vertex ids ``(478,)`` of MediaPipe's face-mesh points on ``mesh`` (a face looking along +z, +y up);
+    -1 for an iris on a face without eyeballs.
 
     Raises
     ------
@@ -80,16 +99,38 @@ def place_landmarks(mesh: Mesh, *, size: int = 512, yaws=(0.0, -12.0, 12.0)) -> 
         if found is None:
             raise InputError("automatic placement lost the face when framing it closely")
         points = _surface_points(*found, camera)
-    # Snap to the part of the mesh (connected component) that most points land on: the skin. Points seen
-    # through the eye or mouth openings would otherwise land on eyeballs or teeth.
-    part = component_labels(mesh)
-    first = project_points(mesh, points)
-    skin = np.bincount(part[first.corner_vertices[:, 0]]).argmax()
-    on_skin = part[mesh.triangles[:, 0]] == skin
-    hit = project_points(Mesh(mesh.vertices, mesh.triangles[on_skin]), points)
-    ids = hit.corner_vertices[np.arange(len(points)), hit.barycentric.argmax(axis=1)]
+    ids = _snap(mesh, points)
     _check_symmetry(mesh.vertices[ids])
     return ids
+
+
+def _snap(mesh: Mesh, points: np.ndarray) -> np.ndarray:
+    """Vertex ids of the cast-back points: on the skin, inner lips on their own lip, irises on the eyeball.
+
+    The skin is the part of the mesh (connected component) most points land on; a point seen through
+    the eye or mouth opening would otherwise land on an eyeball or the teeth. On a closed mouth the
+    upper and lower inner-lip points fall on the same line, so each takes its own lip's side of the
+    seam: the nearest skin facing down (upper lip) or up (lower lip). An iris point keeps the part it
+    landed on when that is not the skin (an eyeball, or a film over it), or is left out (-1) where
+    the eye is a hole: pinned to the lid, it would hold the lid still.
+    """
+    part = component_labels(mesh)
+    first = project_points(mesh, points)
+    landed = part[first.corner_vertices[:, 0]]
+    skin = np.bincount(landed).argmax()
+    skin_mesh = Mesh(mesh.vertices, mesh.triangles[part[mesh.triangles[:, 0]] == skin])
+    ids = _nearest_corner(project_points(skin_mesh, points))
+    for lip, up in ((_UPPER_INNER_LIP, -1.0), (_LOWER_INNER_LIP, 1.0)):
+        lip = np.asarray(lip)
+        facing = np.tile([0.0, up, 0.0], (len(lip), 1))
+        ids[lip] = _nearest_corner(project_points(skin_mesh, points[lip], normals=facing, max_angle=75.0))
+    iris = slice(_IRIS_START, len(points))
+    ids[iris] = np.where(landed[iris] != skin, _nearest_corner(first)[iris], -1)
+    return ids
+
+
+def _nearest_corner(hit) -> np.ndarray:
+    return hit.corner_vertices[np.arange(len(hit.triangles)), hit.barycentric.argmax(axis=1)]
 
 
 def _check_symmetry(points: np.ndarray) -> None:
@@ -110,6 +151,6 @@ def auto_target(mesh: Mesh) -> Target:
     """A Target whose control points are placed automatically: every MPEG-4 feature point MediaPipe
     observes (by number) and all 478 of its points (``mp<i>``)."""
     ids = place_landmarks(mesh)
-    points = {f"mp{i}": int(v) for i, v in enumerate(ids)}
-    points.update({name: int(ids[i]) for name, i in FEATURE_POINT_LANDMARK.items()})
+    points = {f"mp{i}": int(v) for i, v in enumerate(ids) if v >= 0}
+    points.update({name: int(ids[i]) for name, i in FEATURE_POINT_LANDMARK.items() if ids[i] >= 0})
     return Target(mesh, points, measure_fapu(mesh, points, source="automatic placement"))
