@@ -76,7 +76,10 @@ def _parser() -> argparse.ArgumentParser:
         p.add_argument("--obj-sequence", metavar="DIR", help="also write the animation as numbered OBJ files")
         p.add_argument("--csv", metavar="FAPS.csv", help="also write the FAP curves as CSV")
         if name == "animate":
-            p.add_argument("--fap", metavar="OUT.fap", help="also write the FAPs that drive it")
+            p.add_argument("--fap", metavar="OUT.fap", help="also write the video's FAPs")
+            p.add_argument("--via", choices=("motion", "faps"), default="motion",
+                           help="motion (default): every tracked point the target shares moves it, in 3D; "
+                                "faps: only what the MPEG-4 FAPs carry, as decode would play the .fap")
 
     p = commands.add_parser("avatar", help="a textured 3D face from a portrait",
                             description="Make an animatable 3D face from a portrait photo: the tracker's face "
@@ -174,7 +177,7 @@ def main(argv=None) -> int:
             animation, _ = pipeline.animate(args.source, args.output, target_mesh=args.target, points=args.points,
                                             fdp=args.fdp, preview=args.preview, fap=args.fap,
                                             head_motion=args.head_motion, obj_sequence=args.obj_sequence,
-                                            csv=args.csv)
+                                            csv=args.csv, via=args.via)
             print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
                                                                        else ""))
         elif args.command == "avatar":

@@ -6,7 +6,7 @@
    photo is warped along the moving points with the image-warping RBF of Arad et al. (1994): a short
    video of the astronaut performing, whose true FAPs are known.
 3. That video goes through the product as any user video would: tracked, encoded to FAPs
-   (``demo.fap``), retargeted onto the avatar (``demo.glb``), rendered beside the source
+   (``demo.fap``), its tracked motion followed by the avatar (``demo.glb``), rendered beside the source
    (``preview.mp4``).
 4. ``report.html`` says what ran and how long it took, compares the FAPs read back from the video with
    the scripted ones, and shows stills.
@@ -92,8 +92,8 @@ def run_demo(folder, *, progress=None) -> DemoResult:
         with video_writer(result.outputs["performance.mp4"], FPS, image.shape[1], image.shape[0]) as write:
             for frame in frames:
                 write(frame)
-    with _timed(result.steps, "the capture and retargeting: video tracked, encoded to FAPs, decoded onto the "
-                              "avatar, glTF, preview video"):
+    with _timed(result.steps, "the capture and retargeting: video tracked, encoded to FAPs, its motion "
+                              "followed by the avatar, glTF, preview video"):
         animation, recovered = pipeline.animate(
             result.outputs["performance.mp4"], result.outputs["demo.glb"], target=target,
             preview=result.outputs["preview.mp4"], fap=result.outputs["demo.fap"], progress=progress)

@@ -17,7 +17,8 @@ from .mpeg4 import ANGLE_UNIT, FAP_COUNT, Fapu, fap_table
 from .mpeg4.fapstream import FapStream, fap_ranges
 from .validation import as_array
 
-__all__ = ["Motion", "motion_to_faps", "clip_to_range", "head_angles", "EYEBALL_RADIUS_CM", "JAW_CARRIED"]
+__all__ = ["Motion", "motion_to_faps", "clip_to_range", "head_angles", "relative_head_rotations", "EYEBALL_RADIUS_CM",
+           "JAW_CARRIED"]
 
 EYEBALL_RADIUS_CM = 1.2  # an adult eyeball's radius; turns iris shifts into gaze angles
 # Points on the lower lip and chin, which the jaw carries: their FAPs are measured relative to the
@@ -108,6 +109,17 @@ def _rotation_part(pose: np.ndarray) -> np.ndarray:
     return A / np.cbrt(np.linalg.det(A))[:, None, None]
 
 
+def relative_head_rotations(motion: Motion) -> np.ndarray:
+    """(T, 3, 3) head rotations since the first valid frame, in the head frame (the identity on invalid
+    frames and where no frame is valid)."""
+    R = np.tile(np.eye(3), (len(motion), 1, 1))
+    valid = motion.valid
+    if valid.any():
+        turned = _rotation_part(motion.pose[valid])
+        R[valid] = np.einsum("ji,tjk->tik", turned[0], turned)
+    return R
+
+
 def motion_to_faps(motion: Motion, *, name: str = "faceanim") -> FapStream:
     """The FAPs a motion's control points observe, frame by frame.
 
@@ -144,10 +156,7 @@ def motion_to_faps(motion: Motion, *, name: str = "faceanim") -> FapStream:
                 mask[:, j] = True
     valid = motion.valid
     if valid.any():
-        R = _rotation_part(motion.pose)
-        reference = R[np.flatnonzero(valid)[0]]
-        relative = np.einsum("ji,tjk->tik", reference, R)  # head rotation since the reference, head frame
-        angles = head_angles(relative)
+        angles = head_angles(relative_head_rotations(motion))
         for k, fap in enumerate(("head_pitch", "head_yaw", "head_roll")):
             j = table.number(fap) - 1
             values[:, j] = angles[:, k] / ANGLE_UNIT

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -332,10 +333,17 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     return animation
 
 
+_MIN_SHARED_POINTS = 8  # fewer cannot say where the jaw, the lips and the lids go
+
+
 def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=None, fap=None, head_motion=False,
-            progress=None, neutral=None, target=None, obj_sequence=None, csv=None):
-    """``faceanim animate``: a video of a face drives a target mesh, through MPEG-4 FAPs. ``target``, a
-    ready :class:`~faceanim.target.Target`, stands in for the mesh and its points."""
+            progress=None, neutral=None, target=None, obj_sequence=None, csv=None, via="motion"):
+    """``faceanim animate``: a video of a face drives a target mesh. ``target``, a ready
+    :class:`~faceanim.target.Target`, stands in for the mesh and its points.
+
+    ``via="motion"`` follows the tracked Motion directly (every point the target shares, in 3D);
+    a target sharing too few points (a JSON file of other names) falls back to the FAPs, with a
+    warning. ``via="faps"`` plays the FAP stream, as ``decode`` would play the ``.fap`` file."""
     from .capture.headframe import head_frame, track_to_motion
     from .capture.neutral import parse_neutral
     from .capture.overlay import overlay_frames
@@ -343,7 +351,10 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     from .motion import clip_to_range, motion_to_faps
     from .mpeg4.fapfile import write_fap
     from .retarget.decode import animate_faps
+    from .retarget.follow import animate_motion, shared_points
 
+    if via not in ("motion", "faps"):
+        raise InputError(f"via must be motion or faps, got {via!r}")
     output = _check_output(output)
     _check_extra_outputs(obj_sequence, csv)
     if neutral is not None and not isinstance(parse_neutral(str(neutral), 2**62), tuple):
@@ -353,7 +364,14 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     window = None if neutral is None else parse_neutral(str(neutral), len(recorded))
     motion = track_to_motion(recorded, neutral=window)
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
-    animation = animate_faps(stream, target, head_motion=head_motion)
+    if via == "motion" and len(shared_points(motion, target)) < _MIN_SHARED_POINTS:
+        warnings.warn(f"the target shares only {len(shared_points(motion, target))} control points with the tracker; "
+             "it is driven through the FAPs instead", stacklevel=2)
+        via = "faps"
+    if via == "motion":
+        animation = animate_motion(motion, target, head_motion=head_motion, minimum_points=_MIN_SHARED_POINTS)
+    else:
+        animation = animate_faps(stream, target, head_motion=head_motion)
     _write_glb(output, animation)
     _write_extra_outputs(animation, stream, obj_sequence, csv)
     if fap is not None:

@@ -1,0 +1,74 @@
+"""A Motion onto a target directly: every control point the two share moves the target, in 3D.
+
+The FAP route (:mod:`.decode`) keeps what MPEG-4 can say: one or two axes per feature point, each in
+its own FAPU. A tracked Motion knows more: the full 3D motion of all its points (MediaPipe's 478), and
+a target placed automatically carries the same named points. Following the Motion directly keeps the
+lip corners' backward pull, the cheeks and the lids' shape, which FAPs drop (on ICT-FaceKit,
+``benchmarks/roundtrip_ict.py`` compares the two).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry.align import weighted_procrustes
+from ..geometry.animation import Animation
+from ..motion import Motion, relative_head_rotations
+from ..target import Target
+from .transfer import SparseTransfer
+
+__all__ = ["animate_motion", "shared_points"]
+
+# Pupils and iris rims move with the eyeball, not the skin; on the skin they would drag the lids.
+_EYEBALL_POINTS = frozenset({"3.5", "3.6", *(f"mp{i}" for i in range(468, 478))})
+
+
+def shared_points(motion: Motion, target: Target) -> tuple[str, ...]:
+    """Names of the motion's points that the target also carries, less the eyeballs' points."""
+    return tuple(n for n in motion.names if n in target.points and n not in _EYEBALL_POINTS)
+
+
+def animate_motion(motion: Motion, target: Target, *, head_motion: bool = False, pivot=None,
+                   minimum_points: int = 8) -> Animation:
+    """The target moved by ``motion``.
+
+    Displacements are carried from the motion's head frame into the target's by the similarity that
+    best maps the motion's neutral points onto the target's (rotation and one scale, over all shared
+    points, so no single distance's placement error sets the size), then spread over the mesh by
+    surface-aware interpolation (:class:`SparseTransfer`). Frames without a face hold the last face
+    seen (rest before the first). With ``head_motion`` the mesh also turns as the head did, about
+    ``pivot`` (default: the centre of the shared points).
+
+    Raises
+    ------
+    InputError
+        The motion and the target share fewer than ``minimum_points`` control points.
+    """
+    names = shared_points(motion, target)
+    if len(names) < minimum_points:
+        raise InputError(f"the motion and the target share {len(names)} control points; at least "
+                         f"{minimum_points} are needed (give the target MediaPipe's points or MPEG-4 feature points)")
+    ids = target.ids(names)
+    ids, first = np.unique(ids, return_index=True)  # two names on one vertex: keep the first
+    names = [names[i] for i in first]
+    source = motion.neutral[motion.index(names)]
+    carry = weighted_procrustes(source, target.mesh.vertices[ids])[:3, :3]
+    displacements = _held(motion.displacements[:, motion.index(names)], motion.valid) @ carry.T
+    positions = target.mesh.vertices + SparseTransfer(target.mesh, ids)(displacements)
+    if head_motion:
+        centre = target.mesh.vertices[ids].mean(axis=0) if pivot is None else pivot
+        R = relative_head_rotations(motion)
+        positions = np.einsum("tij,tvj->tvi", R, positions - centre) + centre
+    return Animation(target.mesh, positions, motion.fps)
+
+
+def _held(displacements: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``(T, K, 3)`` with each invalid frame replaced by the last valid one (zeros before the first)."""
+    out = np.zeros_like(displacements)
+    last = np.zeros(displacements.shape[1:])
+    for t, ok in enumerate(valid):
+        if ok:
+            last = displacements[t]
+        out[t] = last
+    return out
