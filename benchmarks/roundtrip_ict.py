@@ -4,10 +4,10 @@
 
 ICT identity A performs a scripted sequence (rest, then jawOpen, smile, blink, brows raised, each
 eased in and out over 30 frames; 130 frames at 25 fps), rendered to video by faceanim's renderer
-(shaded, each part of the OBJ coloured like a face: skin, sclera, iris, lashes, teeth, mouth; front).
-``faceanim animate`` then tracks the video, encodes MPEG-4
-FAPs (neutral: the first 10 frames) and decodes them onto identity B, control points placed
-automatically. B performing the same sequence is the truth. Score per segment, as in the transfer
+(each part of the OBJ coloured like a face: skin, sclera, iris, lashes, teeth; front), once with
+eyebrows and lips painted on and once without. ``faceanim animate`` then tracks the video (neutral:
+the first 10 frames) and moves identity B, control points placed automatically, by the tracked
+motion or by its FAPs. B performing the same sequence is the truth. Score per segment, as in the transfer
 benchmark, over the face area (ICT vertices 0-9408) on frames where the expression is at least half
 on: rms(|out - truth|) / rms(|truth - rest|).
 """
@@ -32,6 +32,36 @@ PART_COLOURS = {"M_Face": (214, 170, 140), "M_BackHead": (214, 170, 140), "M_Scl
                 "M_EyeLashes": (30, 20, 15), "M_Teeth": (240, 235, 220), "M_GumsTongue": (150, 60, 60),
                 "M_LacrimalFluid": None, "M_EyeOcclusion": None, "M_EyeBlend": None}  # see-through overlays
 
+SKIN, BROW, LIP = (214, 170, 140), (75, 55, 45), (175, 95, 90)
+
+
+def painted_face(model, vertices) -> np.ndarray:
+    """``(V, 3)`` uint8 colours for the source face: skin, eyebrows and lips, as a real face has them.
+
+    ICT's model has no texture, and a face without brows gives the tracker nothing to follow when the
+    brows move. The brows are a band 0.7 cm wide just under ICT's brow landmarks (17-26, on the
+    brow's upper edge); the lips are the skin inside ICT's outer-lip landmarks (48-59), seen from the
+    front. Only the source is painted; the target and its placement never see ICT's landmarks.
+    """
+    from skimage.measure import points_in_poly
+
+    colours = np.tile(np.array(SKIN, dtype=np.uint8), (len(vertices), 1))
+    face = vertices[:FACE_VERTICES]
+    marks = vertices[model.landmarks]
+    for start, end in ((17, 22), (22, 27)):
+        line = marks[start:end] - [0.0, 0.35, 0.0]
+        a, b = line[:-1], line[1:]
+        ab = b - a
+        t = np.clip(np.einsum("vsk,sk->vs", face[:, None] - a, ab) / (ab * ab).sum(1), 0, 1)
+        nearest = a + t[..., None] * ab
+        distance = np.linalg.norm(face[:, None] - nearest, axis=2).min(axis=1)
+        colours[:FACE_VERTICES][distance < 0.35] = BROW
+    lips = marks[48:60]
+    inside = points_in_poly(face[:, :2], lips[:, :2]) & (face[:, 2] > lips[:, 2].min() - 0.5)
+    colours[:FACE_VERTICES][inside] = LIP
+    return colours
+
+
 SEGMENTS = (("jawOpen", ("jawOpen",)), ("smile", ("mouthSmile_L", "mouthSmile_R")),
             ("blink", ("eyeBlink_L", "eyeBlink_R")), ("brows up", ("browInnerUp_L", "browInnerUp_R",
                                                                    "browOuterUp_L", "browOuterUp_R")))
@@ -49,6 +79,38 @@ def script(model, rest=10, length=30):
     return np.concatenate(weights)
 
 
+# (label, source painted with brows and lips, animate's route)
+RUNS = (("painted source, motion route (default)", True, "motion"),
+        ("painted source, FAP route", True, "faps"),
+        ("unpainted source, motion route", False, "motion"))
+
+
+def run(model, A, B, weights, deltas, *, painted: bool, via: str):
+    """Render A performing, run ``faceanim animate`` onto B; returns (positions (T, V, 3), FapStream)."""
+    from faceanim import pipeline
+    from faceanim.geometry import read_mesh, write_mesh
+    from faceanim.render.camera import front_camera
+    from faceanim.render.rasterizer import Renderer
+    from faceanim.render.video import video_writer
+
+    labelled = read_mesh(ICT / "obj" / "generic_neutral_mesh.obj")  # its materials label the parts
+    source = labelled.with_vertices(A)
+    style = {"part_colours": PART_COLOURS}
+    if painted:
+        style = {"part_colours": {k: v for k, v in PART_COLOURS.items() if k != "M_Face"},
+                 "vertex_colours": painted_face(model, A), "light": (0.0, 1.0, 1.0)}
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        camera = front_camera(A[:FACE_VERTICES], 512, 512, vertical_fov=20.0, margin=1.1)
+        with Renderer(512, 512) as renderer, video_writer(tmp / "performance.mp4", 25, 512, 512) as write:
+            for d in deltas:
+                write(renderer.render(source, camera, positions=A + d, **style))
+        write_mesh(tmp / "B.obj", model.mesh(B))
+        animation, stream = pipeline.animate(tmp / "performance.mp4", tmp / "B.glb", target_mesh=tmp / "B.obj",
+                                             neutral="0:10", progress=False, via=via)
+    return animation.positions, stream
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=3)
@@ -56,59 +118,48 @@ def main(argv=None) -> int:
     if not ict_available():
         print("skipped: needs ../shared/data/ict_facekit (the shared data folder beside the checkout)")
         return 0
-    from faceanim import pipeline
-    from faceanim.geometry import read_mesh, write_mesh
-    from faceanim.render.camera import front_camera
-    from faceanim.render.rasterizer import Renderer
-    from faceanim.render.video import video_writer
-
     rng = np.random.default_rng(args.seed)
     model = load_ict()
     A, B = model.random_identities(rng)
     weights = script(model)
     deltas = np.einsum("te,evc->tvc", weights, model.expression_deltas)
-    labelled = read_mesh(ICT / "obj" / "generic_neutral_mesh.obj")  # its materials label the parts
-    source = labelled.with_vertices(A)
-    start = time.perf_counter()
-    with tempfile.TemporaryDirectory() as tmp:
-        tmp = Path(tmp)
-        camera = front_camera(A[:FACE_VERTICES], 512, 512, vertical_fov=20.0, margin=1.1)
-        with Renderer(512, 512) as renderer, video_writer(tmp / "performance.mp4", 25, 512, 512) as write:
-            for d in deltas:
-                write(renderer.render(source, camera, positions=A + d, part_colours=PART_COLOURS))
-        write_mesh(tmp / "B.obj", model.mesh(B))
-        animation, stream = pipeline.animate(tmp / "performance.mp4", tmp / "B.glb", target_mesh=tmp / "B.obj",
-                                             neutral="0:10", progress=False)
-    seconds = time.perf_counter() - start
-    out = animation.positions[:, :FACE_VERTICES]
     truth = (B + deltas)[:, :FACE_VERTICES]
     rest = B[:FACE_VERTICES]
-    lines = ["# End to end on ICT-FaceKit: render, track, FAPs, another face", "",
-             f"`python benchmarks/roundtrip_ict.py --seed {args.seed}` ({seconds:.0f} s). Source: identity A rendered "
-             "(shaded, parts coloured, 512 px, front) performing the script; target: identity B, control points placed "
-             "automatically; path: MediaPipe face mesh, head pose, One Euro filter, FAPs (neutral: frames 0-9), "
-             "decoding onto B. Relative error over B's face area on frames where the expression is at least "
-             "half on: 0 is exact, 1 is no better than not moving.", "",
-             "Diagnosis: the gain that would fit the output's motion best to the truth (least squares; 1 means the "
-             "size is right, negative means the wrong direction), and the error left at that gain (what is wrong "
-             "with the shape of the motion, not its size).", "",
-             "| segment | frames | relative error | truth rms (cm) | best gain | error at best gain |",
-             "|---|---|---|---|---|---|"]
-    all_errors = []
-    for name, expressions in SEGMENTS:
-        column = model.expression_names.index(expressions[0])
-        frames = np.flatnonzero(weights[:, column] >= 0.5)
-        err = relative_error(out[frames], truth[frames], rest)
-        all_errors.append(err)
-        size = np.sqrt(((truth[frames] - rest) ** 2).sum(-1).mean())
-        moved, wanted = (out[frames] - rest).ravel(), (truth[frames] - rest).ravel()
-        gain = moved @ wanted / max(moved @ moved, 1e-300)
-        refit = relative_error(rest + gain * (out[frames] - rest), truth[frames], rest)
-        lines.append(f"| {name} | {len(frames)} | {np.median(err):.2f} | {size:.3f} | {gain:.2f} | "
-                     f"{np.median(refit):.2f} |")
-    everything = np.concatenate(all_errors)
-    lines += ["", f"**Median over all active frames: {np.median(everything):.2f}** "
-              f"(FAPs written per frame: {int(stream.mask[0].sum())})."]
+    lines = ["# End to end on ICT-FaceKit: render, track, another face", "",
+             f"`python benchmarks/roundtrip_ict.py --seed {args.seed}`. Source: identity A rendered (512 px, front) "
+             "performing the script; target: identity B, control points placed automatically; `faceanim animate` "
+             "with the neutral on frames 0-9 (MediaPipe face mesh, head pose, One Euro filter, then B). Relative "
+             "error over B's face area on frames where the expression is at least half on: 0 is exact, 1 is no "
+             "better than not moving.", "",
+             "Sources: *painted*: skin, eyebrows and lips painted on A (`painted_face`), lit from above; "
+             "*unpainted*: A's parts coloured (skin, sclera, iris, lashes, teeth) but no brows or lips, lit "
+             "from the camera. Routes: *motion* follows the tracked points in 3D (`--via motion`, the default); "
+             "*FAP* plays the MPEG-4 FAPs the video gives (`--via faps`, what `decode` does with the `.fap`).", "",
+             "Diagnosis columns: the gain that would fit the output's motion best to the truth (least squares; 1 "
+             "means the size is right, negative the wrong direction), and the error left at that gain (the shape "
+             "of the motion, not its size).", ""]
+    for label, painted, via in RUNS:
+        start = time.perf_counter()
+        positions, stream = run(model, A, B, weights, deltas, painted=painted, via=via)
+        seconds = time.perf_counter() - start
+        out = positions[:, :FACE_VERTICES]
+        lines += [f"## {label} ({seconds:.0f} s)", "",
+                  "| segment | frames | relative error | truth rms (cm) | best gain | error at best gain |",
+                  "|---|---|---|---|---|---|"]
+        all_errors = []
+        for name, expressions in SEGMENTS:
+            column = model.expression_names.index(expressions[0])
+            frames = np.flatnonzero(weights[:, column] >= 0.5)
+            err = relative_error(out[frames], truth[frames], rest)
+            all_errors.append(err)
+            size = np.sqrt(((truth[frames] - rest) ** 2).sum(-1).mean())
+            moved, wanted = (out[frames] - rest).ravel(), (truth[frames] - rest).ravel()
+            gain = moved @ wanted / max(moved @ moved, 1e-300)
+            refit = relative_error(rest + gain * (out[frames] - rest), truth[frames], rest)
+            lines.append(f"| {name} | {len(frames)} | {np.median(err):.2f} | {size:.3f} | {gain:.2f} | "
+                         f"{np.median(refit):.2f} |")
+        lines += ["", f"**Median over all active frames: {np.median(np.concatenate(all_errors)):.2f}** "
+                  f"(FAPs written per frame: {int(stream.mask[0].sum())}).", ""]
     publish("roundtrip_ict.md", lines)
     return 0
 
