@@ -60,3 +60,16 @@ def test_eyeball_points_do_not_drive_the_skin_and_too_few_points_are_refused():
     few = Target(target.mesh, dict(list(target.points.items())[:5]), FAPU)
     with pytest.raises(InputError, match="share 5 control points; at least 8 are needed"):
         animate_motion(motion, few)
+
+
+def test_head_motion_turns_the_target_about_its_own_axes():
+    target, motion, ids, R = setting(frames=2)
+    c, s = np.cos(np.radians(10)), np.sin(np.radians(10))
+    pitch = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    pose = np.tile(np.eye(4), (2, 1, 1))
+    pose[1, :3, :3] = pitch  # the head pitches 10 degrees about the motion's own x axis
+    still = Motion(motion.names, motion.neutral, np.zeros_like(motion.displacements), pose, 25.0, FAPU)
+    positions = animate_motion(still, target, head_motion=True, pivot=np.zeros(3)).positions
+    np.testing.assert_allclose(positions[0], target.mesh.vertices, atol=1e-12)
+    # the motion's frame is the target's turned by R, so the target turns by R^T pitch R
+    np.testing.assert_allclose(positions[1], target.mesh.vertices @ (R.T @ pitch @ R).T, atol=1e-9)

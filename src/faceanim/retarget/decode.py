@@ -11,7 +11,7 @@ from ..mpeg4.fapstream import FapStream
 from ..target import Target
 from .transfer import SparseTransfer
 
-__all__ = ["fap_displacements", "animate_faps", "held"]
+__all__ = ["fap_displacements", "animate_faps", "held", "turn_head"]
 
 
 
@@ -118,6 +118,10 @@ def animate_faps(stream: FapStream, target: Target, *, head_motion: bool = False
     positions = target.mesh.vertices + field
     if head_motion:
         centre = target.mesh.vertices[target.ids(list(target.points))].mean(axis=0) if pivot is None else pivot
-        R = head_rotations(stream)
-        positions = np.einsum("tij,tvj->tvi", R, positions - centre) + centre
+        positions = turn_head(positions, head_rotations(stream), centre)
     return Animation(target.mesh, positions, stream.fps)
+
+
+def turn_head(positions: np.ndarray, rotations: np.ndarray, centre) -> np.ndarray:
+    """``positions (T, V, 3)`` turned frame by frame by ``rotations (T, 3, 3)`` about ``centre (3,)``."""
+    return np.einsum("tij,tvj->tvi", rotations, positions - centre) + centre

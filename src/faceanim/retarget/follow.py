@@ -16,6 +16,7 @@ from ..geometry.align import weighted_procrustes
 from ..geometry.animation import Animation
 from ..motion import Motion, relative_head_rotations
 from ..target import Target
+from .decode import turn_head
 from .transfer import SparseTransfer
 
 __all__ = ["animate_motion", "shared_points"]
@@ -58,8 +59,8 @@ def animate_motion(motion: Motion, target: Target, *, head_motion: bool = False,
     positions = target.mesh.vertices + SparseTransfer(target.mesh, ids)(displacements)
     if head_motion:
         centre = target.mesh.vertices[ids].mean(axis=0) if pivot is None else pivot
-        R = relative_head_rotations(motion)
-        positions = np.einsum("tij,tvj->tvi", R, positions - centre) + centre
+        turn = carry / np.cbrt(np.linalg.det(carry))  # the carry's rotation: the head turns in the target's axes
+        positions = turn_head(positions, turn @ relative_head_rotations(motion) @ turn.T, centre)
     return Animation(target.mesh, positions, motion.fps)
 
 
