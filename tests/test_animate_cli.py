@@ -69,7 +69,30 @@ def test_pipeline_argument_errors(tmp_path):
     video = shared("videos", "d0.mp4")
     with pytest.raises(InputError, match="animate takes the neutral as FRAME or START:END"):
         pipeline.animate(video, tmp_path / "a.glb", target_mesh=mesh, neutral="face.png", progress=False)
+    with pytest.raises(InputError, match="via must be motion or faps, got 'points'"):
+        pipeline.animate(video, tmp_path / "a.glb", target_mesh=mesh, via="points", progress=False)
     assert not (tmp_path / "a.glb").exists()
+
+
+def test_animate_falls_back_to_the_faps_for_a_target_sharing_few_points(tmp_path):
+    import numpy as np
+
+    from faceanim import pipeline
+    from faceanim.geometry import read_mesh
+    from faceanim.mpeg4 import Fapu
+    from faceanim.retarget.decode import animate_faps
+    from faceanim.target import Target
+
+    mesh = read_mesh(shared("ict_facekit", "obj", "generic_neutral_mesh.obj"))
+    landmarks = json.loads(shared("ict_facekit", "landmarks_multipie68.json").read_text())["multi_pie_68"]
+    # seven feature points (chin, lip corners and middles, nose tip): too few to follow the motion
+    points = {"2.1": landmarks[8], "8.3": landmarks[54], "8.4": landmarks[48], "8.1": landmarks[51],
+              "8.2": landmarks[57], "9.3": landmarks[30], "2.2": landmarks[62]}
+    target = Target(mesh, points, Fapu(irisd0=1.1, es0=6.0, ens0=4.0, mns0=2.5, mw0=4.5))
+    with pytest.warns(UserWarning, match="shares only 7 control points .* driven through the FAPs"):
+        animation, stream = pipeline.animate(shared("videos", "d0.mp4"), tmp_path / "a.glb", target=target,
+                                             progress=False)
+    np.testing.assert_allclose(animation.positions, animate_faps(stream, target).positions)
 
 
 def test_decode_onto_the_default_avatar_with_obj_sequence_and_csv(tmp_path, capsys):

@@ -177,3 +177,21 @@ def test_a_degenerate_non_manifold_target_still_animates():
     assert np.isfinite(animation.positions).all()
     drop = animation.positions[:, 4, 1] - v[4, 1]  # the chin (2.1)
     assert drop[0] == pytest.approx(0, abs=1e-9) and drop[2] < drop[1] < 0
+
+
+def test_outline_points_take_the_depth_mediapipe_predicts():
+    from faceanim.render.camera import front_camera
+    from faceanim.retarget.placement import _surface_points
+
+    camera = front_camera(np.array([[-1.0, -1, 0], [1, 1, 0]]), 64, 64)
+    rng = np.random.default_rng(0)
+    pixels = rng.uniform(8, 56, size=(40, 2))
+    relative = rng.uniform(-2, 2, size=40)
+    truth = 10.0 + 0.25 * relative  # a face whose depths MediaPipe's z predicts exactly
+    depth = np.full((64, 64), np.inf)
+    cols, rows = np.round(pixels[:, 0] - 0.5).astype(int), np.round(pixels[:, 1] - 0.5).astype(int)
+    depth[rows, cols] = truth
+    depth[rows[0], cols[0]] = np.inf  # off the silhouette: nothing behind the pixel
+    depth[rows[1], cols[1]] = 25.0  # past the outline: the ear or the neck behind it
+    points = _surface_points(pixels, relative, depth, camera)
+    np.testing.assert_allclose(points, camera.unproject(pixels, truth), atol=1e-9)

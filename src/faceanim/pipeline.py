@@ -333,9 +333,6 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     return animation
 
 
-_MIN_SHARED_POINTS = 8  # fewer cannot say where the jaw, the lips and the lids go
-
-
 def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=None, fap=None, head_motion=False,
             progress=None, neutral=None, target=None, obj_sequence=None, csv=None, via="motion"):
     """``faceanim animate``: a video of a face drives a target mesh. ``target``, a ready
@@ -351,7 +348,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     from .motion import clip_to_range, motion_to_faps
     from .mpeg4.fapfile import write_fap
     from .retarget.decode import animate_faps
-    from .retarget.follow import animate_motion, shared_points
+    from .retarget.follow import MINIMUM_SHARED_POINTS, animate_motion, shared_points
 
     if via not in ("motion", "faps"):
         raise InputError(f"via must be motion or faps, got {via!r}")
@@ -364,12 +361,12 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     window = None if neutral is None else parse_neutral(str(neutral), len(recorded))
     motion = track_to_motion(recorded, neutral=window)
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
-    if via == "motion" and len(shared_points(motion, target)) < _MIN_SHARED_POINTS:
+    if via == "motion" and len(shared_points(motion, target)) < MINIMUM_SHARED_POINTS:
         warnings.warn(f"the target shares only {len(shared_points(motion, target))} control points with the tracker; "
              "it is driven through the FAPs instead", stacklevel=2)
         via = "faps"
     if via == "motion":
-        animation = animate_motion(motion, target, head_motion=head_motion, minimum_points=_MIN_SHARED_POINTS)
+        animation = animate_motion(motion, target, head_motion=head_motion)
     else:
         animation = animate_faps(stream, target, head_motion=head_motion)
     _write_glb(output, animation)

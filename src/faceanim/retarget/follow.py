@@ -19,7 +19,9 @@ from ..target import Target
 from .decode import turn_head
 from .transfer import SparseTransfer
 
-__all__ = ["animate_motion", "shared_points"]
+__all__ = ["animate_motion", "shared_points", "MINIMUM_SHARED_POINTS"]
+
+MINIMUM_SHARED_POINTS = 8  # fewer cannot say where the jaw, the lips and the lids go
 
 # Pupils and iris rims move with the eyeball, not the skin; on the skin they would drag the lids.
 _EYEBALL_POINTS = frozenset({"3.5", "3.6", *(f"mp{i}" for i in range(468, 478))})
@@ -31,7 +33,7 @@ def shared_points(motion: Motion, target: Target) -> tuple[str, ...]:
 
 
 def animate_motion(motion: Motion, target: Target, *, head_motion: bool = False, pivot=None,
-                   minimum_points: int = 8) -> Animation:
+                   minimum_points: int = MINIMUM_SHARED_POINTS) -> Animation:
     """The target moved by ``motion``.
 
     Displacements are carried from the motion's head frame into the target's by the similarity that
