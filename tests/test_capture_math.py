@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from conftest import shared
 
+from faceanim.capture.headframe import restabilise
 from faceanim.capture.landmarks import FEATURE_POINT_LANDMARK, IBUG68_LANDMARK
 from faceanim.capture.metric import canonical_face, metric_geometry
 from faceanim.capture.neutral import parse_neutral, relaxed_window
@@ -69,6 +70,27 @@ def test_landmark_maps_respect_sides_and_symmetry():
     L = IBUG68_LANDMARK
     for a, b in [(36, 45), (39, 42), (17, 26), (21, 22), (48, 54), (31, 35), (60, 64), (0, 16), (4, 12)]:
         np.testing.assert_allclose(v[L[a]] * [-1, 1, 1], v[L[b]], atol=0.05)
+
+
+def test_restabilise_keeps_only_expression_and_camera_positions():
+    """A face opening its jaw and smiling, seen through a head frame that the expression tilted and
+    shifted: fitted back onto its own rest over the skull's points, the expression is all that is left,
+    and pose @ points is the same camera-space face."""
+    rest = canonical_face().vertices
+    expression = np.zeros((2, 468, 3))
+    jaw = rest[:, 1] < -4.0                                  # the lower face, jaw points 136/365 included
+    expression[1, jaw] = [0.0, -1.2, -0.6]
+    expression[1, [61, 291, 205, 425]] += [0.0, 0.5, 0.2]    # lip corners and cheeks rise
+    drift = np.eye(4)
+    drift[:3, :3], drift[:3, 3] = 1.02 * rotation(0, 0.06), [0.0, 0.3, -0.1]  # how the fit was pulled
+    seen = (rest + expression) @ drift[:3, :3].T + drift[:3, 3]
+    pose = np.tile(np.eye(4), (2, 1, 1))
+    pose[:, :3, 3] = [0.0, 0.0, -50.0]
+    points, new_pose = restabilise(seen, pose, rest, np.array([True, True]))
+    np.testing.assert_allclose(points - rest, expression, atol=1e-9)
+    camera_before = np.einsum("tij,tlj->tli", pose[:, :3, :3], seen) + pose[:, None, :3, 3]
+    camera_after = np.einsum("tij,tlj->tli", new_pose[:, :3, :3], points) + new_pose[:, None, :3, 3]
+    np.testing.assert_allclose(camera_after, camera_before, atol=1e-9)
 
 
 def test_head_angles_follow_mpeg4_words():

@@ -5,17 +5,22 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..geometry.align import batch_procrustes
 from ..motion import Motion
 from ..mpeg4 import fapu_from_points
 from .landmarks import FEATURE_POINT_LANDMARK
-from .metric import metric_geometry_frames
+from .metric import canonical_face, metric_geometry_frames
 from .neutral import relaxed_window
 from .smoothing import OneEuro, one_euro
 from .track import Track
 
-__all__ = ["head_frame", "track_to_motion", "landmark_names", "DEFAULT_SMOOTHING"]
+__all__ = ["head_frame", "track_to_motion", "landmark_names", "restabilise", "DEFAULT_SMOOTHING"]
 
 DEFAULT_SMOOTHING = OneEuro()
+
+# Of MediaPipe's Procrustes landmarks (metric.py), those that expressions move: 136/365 ride on the jaw,
+# 147/376 and 205/425 on the cheeks a smile raises.
+_MOVED_BY_EXPRESSION = (136, 365, 147, 376, 205, 425)
 
 
 def landmark_names(count: int) -> tuple[str, ...]:
@@ -39,6 +44,38 @@ def head_frame(track: Track):
     usable = np.flatnonzero(track.usable)
     if len(usable):
         points[usable], pose[usable] = metric_geometry_frames(track.landmarks[usable], track.width, track.height)
+    return points, pose
+
+
+def _skull_weights() -> np.ndarray:
+    """``(468,)`` equal weights on the landmarks that stay with the skull, zero elsewhere.
+
+    MediaPipe's own weights favour the nostrils (a quarter of the total) and include the jaw and
+    cheeks, so a smile or an open jaw tilts and lifts the fitted head, and every other point seems to
+    move the other way. Equal weights over the rest spread the fit over the nose ridge, eye corners,
+    forehead and temples.
+    """
+    weights = (canonical_face().weights > 0).astype(np.float64)
+    weights[list(_MOVED_BY_EXPRESSION)] = 0.0
+    return weights
+
+
+def restabilise(points: np.ndarray, pose: np.ndarray, rest: np.ndarray, usable: np.ndarray):
+    """Each usable frame's head-frame ``points (T, L, 3)`` moved onto the face's own ``rest (L, 3)`` by
+    the similarity over the skull's landmarks; ``pose (T, 4, 4)`` takes up the inverse, so camera-space
+    positions are unchanged. Returns new ``(points, pose)``.
+
+    The head frame from :func:`head_frame` is fitted to MediaPipe's canonical face, which is nobody's
+    face at rest: a person's expression changes how it fits. Fitted to the person's own neutral, the
+    skull's points stay put and only expression remains.
+    """
+    points, pose = points.copy(), pose.copy()
+    frames = np.flatnonzero(usable)
+    if len(frames):
+        to_frame = batch_procrustes(rest[:468], points[frames, :468], _skull_weights())
+        back = np.linalg.inv(to_frame)
+        points[frames] = np.einsum("tij,tlj->tli", back[:, :3, :3], points[frames]) + back[:, None, :3, 3]
+        pose[frames] = pose[frames] @ to_frame
     return points, pose
 
 
@@ -76,6 +113,9 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
         chosen = usable[start:end]
         if not chosen.any():
             raise InputError(f"the neutral frames {start}:{end} hold no tracked face")
+        rest = points[start:end][chosen].mean(axis=0)
+    points, pose = restabilise(points, pose, rest, usable)
+    if neutral_points is None:
         rest = points[start:end][chosen].mean(axis=0)
     names = landmark_names(points.shape[1])
     lookup = {n: rest[i] for i, n in enumerate(names)}
