@@ -135,6 +135,10 @@ def test_automatic_placement_on_the_ict_face():
     assert normals[target.points["2.6"], 1] < 0 < normals[target.points["2.8"], 1]  # upper faces down, lower up
     # the pupils sit on the eye's own parts (ICT's eye films and eyeballs, vertices 21451 on), not on the lids
     assert all(target.points[p] >= 21451 for p in ("3.5", "3.6"))
+    # the outer eye corners hide behind the lashes: cast through the skin alone, both land on the lid's
+    # corner, not on the upper lid in front of it
+    for point, landmark in (("3.7", 45), ("3.12", 36)):
+        assert np.linalg.norm(mesh.vertices[target.points[point]] - truth[landmark]) < 0.35, point
     assert 4.0 < target.fapu.mw0 < 6.5 and 5.0 < target.fapu.es0 < 7.5
 
 

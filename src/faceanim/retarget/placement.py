@@ -99,33 +99,47 @@ def place_landmarks(mesh: Mesh, *, size: int = 512, yaws=(0.0, -12.0, 12.0)) -> 
         if found is None:
             raise InputError("automatic placement lost the face when framing it closely")
         points = _surface_points(*found, camera)
-    ids = _snap(mesh, points)
+        first, on_skin, skin_mesh = _find_skin(mesh, points)
+        if len(skin_mesh.triangles) < len(mesh.triangles) and not on_skin[:_IRIS_START].all():
+            # Lashes, brows or hair in front of the skin caught some points: cast those through the skin alone.
+            _, skin_depth = renderer.render(skin_mesh, camera, depth=True, light=_LIGHT)
+            points[:_IRIS_START] = _surface_points(found[0], found[1], skin_depth, camera)[:_IRIS_START]
+    ids = _snap(points, first, on_skin, skin_mesh)
     _check_symmetry(mesh.vertices[ids])
     return ids
 
 
-def _snap(mesh: Mesh, points: np.ndarray) -> np.ndarray:
-    """Vertex ids of the cast-back points: on the skin, inner lips on their own lip, irises on the eyeball.
+def _find_skin(mesh: Mesh, points: np.ndarray):
+    """Where the cast-back points land: the hits on the whole mesh, whether each is on the skin, and the
+    skin as a mesh of its own.
 
-    The skin is the part of the mesh (connected component) most points land on; a point seen through
-    the eye or mouth opening would otherwise land on an eyeball or the teeth. On a closed mouth the
-    upper and lower inner-lip points fall on the same line, so each takes its own lip's side of the
-    seam: the nearest skin facing down (upper lip) or up (lower lip). An iris point keeps the part it
-    landed on when that is not the skin (an eyeball, or a film over it), or is left out (-1) where
-    the eye is a hole: pinned to the lid, it would hold the lid still.
+    The skin is the part of the mesh (connected component) most points land on; others are eyeballs,
+    teeth, lashes, seen through the eye or mouth opening or in front of the skin.
     """
     part = component_labels(mesh)
     first = project_points(mesh, points)
     landed = part[first.corner_vertices[:, 0]]
     skin = np.bincount(landed).argmax()
     skin_mesh = Mesh(mesh.vertices, mesh.triangles[part[mesh.triangles[:, 0]] == skin])
+    return first, landed == skin, skin_mesh
+
+
+def _snap(points: np.ndarray, first, on_skin: np.ndarray, skin_mesh: Mesh) -> np.ndarray:
+    """Vertex ids of the cast-back points: on the skin, inner lips on their own lip, irises on the eyeball.
+
+    ``first``: the points' hits on the whole mesh; ``on_skin``: whether each hit is on the skin. On a
+    closed mouth the upper and lower inner-lip points fall on the same line, so each takes its own
+    lip's side of the seam: the nearest skin facing down (upper lip) or up (lower lip). An iris point
+    keeps the part it landed on when that is not the skin (an eyeball, or a film over it), or is left
+    out (-1) where the eye is a hole: pinned to the lid, it would hold the lid still.
+    """
     ids = _nearest_corner(project_points(skin_mesh, points))
     for lip, up in ((_UPPER_INNER_LIP, -1.0), (_LOWER_INNER_LIP, 1.0)):
         lip = np.asarray(lip)
         facing = np.tile([0.0, up, 0.0], (len(lip), 1))
         ids[lip] = _nearest_corner(project_points(skin_mesh, points[lip], normals=facing, max_angle=75.0))
     iris = slice(_IRIS_START, len(points))
-    ids[iris] = np.where(landed[iris] != skin, _nearest_corner(first)[iris], -1)
+    ids[iris] = np.where(~on_skin[iris], _nearest_corner(first)[iris], -1)
     return ids
 
 
