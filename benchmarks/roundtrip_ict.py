@@ -4,8 +4,9 @@
 
 ICT identity A performs a scripted sequence (rest, then jawOpen, smile, blink, brows raised, each
 eased in and out over 30 frames; 130 frames at 25 fps), rendered to video by faceanim's renderer
-(each part of the OBJ coloured like a face: skin, sclera, iris, lashes, teeth; front), once with
-eyebrows and lips painted on and once without. ``faceanim animate`` then tracks the video (neutral:
+(front), three ways: skin, brows, lids, eyes and lips taken from a real photo (``portrait_face``),
+the default; eyebrows and lips painted on flat skin; and flat parts only (skin, sclera, iris, lashes,
+teeth). ``faceanim animate`` then tracks the video (neutral:
 the first 10 frames) and moves identity B, control points placed automatically, by the tracked
 motion or by its FAPs. B performing the same sequence is the truth. Score per segment, as in the transfer
 benchmark, over the face area (ICT vertices 0-9408) on frames where the expression is at least half
@@ -62,6 +63,66 @@ def painted_face(model, vertices) -> np.ndarray:
     return colours
 
 
+def portrait_face(model, vertices, labelled) -> np.ndarray:
+    """``(V, 3)`` uint8 colours for the source face taken from a real photo: the astronaut portrait that
+    scikit-image ships, carried onto the face by correspondence.
+
+    MediaPipe's points are placed on the source identity (``auto_target``) and found on the photo; a
+    thin-plate warp from the face's front view to the photo then gives every face and eyeball vertex
+    its pixel, so the brows, lids, lashes' line, irises and lips are the photo's own and move with the
+    vertices. Skin outside the photo's face oval takes the face's median colour (the photo has hair and
+    a suit there). Only the source is coloured; the target never sees the photo.
+    """
+    from matplotlib.path import Path as Outline
+    from mediapipe.python.solutions.face_mesh_connections import FACEMESH_FACE_OVAL
+
+    from faceanim.geometry.rbf import RbfWarp
+    from faceanim.portrait import portrait, portrait_landmarks
+    from faceanim.retarget.placement import place_landmarks
+
+    photo, name = portrait()
+    photo_pixels = portrait_landmarks(photo, name)[:468, :2] * [photo.shape[1], photo.shape[0]]
+    on_face = place_landmarks(model.mesh(vertices))[:468]
+    on_face, first = np.unique(on_face, return_index=True)  # two points on one vertex: keep one
+    warp = RbfWarp(vertices[on_face, :2], photo_pixels[first])
+
+    def sample(ids):
+        pixels = np.round(warp(vertices[ids, :2])).astype(int)
+        pixels = np.clip(pixels, 0, [photo.shape[1] - 1, photo.shape[0] - 1])
+        return photo[pixels[:, 1], pixels[:, 0]]
+
+    colours = np.zeros((len(vertices), 3), dtype=np.uint8)
+    face = np.arange(FACE_VERTICES)
+    colours[face] = sample(face)
+    oval = _loop(FACEMESH_FACE_OVAL)
+    placed = dict(zip(first, on_face, strict=True))  # MediaPipe index -> vertex, where kept
+    outline = vertices[[placed[i] for i in oval if i in placed], :2]
+    inside = Outline(outline).contains_points(vertices[face, :2])
+    skin = np.median(colours[face][inside], axis=0).astype(np.uint8)
+    colours[face[~inside]] = skin
+    eyes = [k for k, n in enumerate(labelled.part_names) if n.startswith(("M_Sclera", "M_Iris"))]
+    eyeballs = np.unique(labelled.triangles[np.isin(labelled.parts, eyes)])
+    colours[eyeballs] = sample(eyeballs)
+    colours[np.setdiff1d(np.arange(FACE_VERTICES, len(vertices)), eyeballs)] = skin
+    return colours
+
+
+def _loop(edges) -> list[int]:
+    """The vertices of a closed loop given as an unordered set of edges, in order round it."""
+    neighbours: dict[int, list[int]] = {}
+    for a, b in edges:
+        neighbours.setdefault(a, []).append(b)
+        neighbours.setdefault(b, []).append(a)
+    loop = [next(iter(neighbours))]
+    previous = None
+    while True:
+        step = next(v for v in neighbours[loop[-1]] if v != previous)
+        if step == loop[0]:
+            return loop
+        previous = loop[-1]
+        loop.append(step)
+
+
 SEGMENTS = (("jawOpen", ("jawOpen",)), ("smile", ("mouthSmile_L", "mouthSmile_R")),
             ("blink", ("eyeBlink_L", "eyeBlink_R")), ("brows up", ("browInnerUp_L", "browInnerUp_R",
                                                                    "browOuterUp_L", "browOuterUp_R")))
@@ -79,13 +140,29 @@ def script(model, rest=10, length=30):
     return np.concatenate(weights)
 
 
-# (label, source painted with brows and lips, animate's route)
-RUNS = (("painted source, motion route (default)", True, "motion"),
-        ("painted source, FAP route", True, "faps"),
-        ("unpainted source, motion route", False, "motion"))
+# (label, how the source is coloured, animate's route)
+RUNS = (("portrait source, motion route (default)", "portrait", "motion"),
+        ("portrait source, FAP route", "portrait", "faps"),
+        ("painted source, motion route", "painted", "motion"),
+        ("unpainted source, motion route", "unpainted", "motion"))
 
 
-def run(model, A, B, weights, deltas, *, painted: bool, via: str):
+def source_style(model, A, labelled, skin: str) -> dict:
+    """The renderer's settings for the source face: ``portrait``, ``painted`` or ``unpainted``."""
+    if skin == "unpainted":
+        return {"part_colours": PART_COLOURS}
+    if skin == "painted":
+        return {"part_colours": {k: v for k, v in PART_COLOURS.items() if k != "M_Face"},
+                "vertex_colours": painted_face(model, A), "light": (0.0, 1.0, 1.0)}
+    # The photo has the eyes, and the lashes' line on the lids; ICT's lash strips drawn solid would be
+    # a black ring round each eye.
+    kept = {"M_Teeth", "M_GumsTongue", "M_LacrimalFluid", "M_EyeOcclusion", "M_EyeBlend"}
+    parts = {k: v for k, v in PART_COLOURS.items() if k in kept}
+    parts["M_EyeLashes"] = None
+    return {"part_colours": parts, "vertex_colours": portrait_face(model, A, labelled), "light": (0.0, 1.0, 1.0)}
+
+
+def run(model, A, B, weights, deltas, *, skin: str, via: str):
     """Render A performing, run ``faceanim animate`` onto B; returns (positions (T, V, 3), FapStream)."""
     from faceanim import pipeline
     from faceanim.geometry import read_mesh, write_mesh
@@ -95,10 +172,7 @@ def run(model, A, B, weights, deltas, *, painted: bool, via: str):
 
     labelled = read_mesh(ICT / "obj" / "generic_neutral_mesh.obj")  # its materials label the parts
     source = labelled.with_vertices(A)
-    style = {"part_colours": PART_COLOURS}
-    if painted:
-        style = {"part_colours": {k: v for k, v in PART_COLOURS.items() if k != "M_Face"},
-                 "vertex_colours": painted_face(model, A), "light": (0.0, 1.0, 1.0)}
+    style = source_style(model, A, labelled, skin)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         camera = front_camera(A[:FACE_VERTICES], 512, 512, vertical_fov=20.0, margin=1.1)
@@ -131,16 +205,18 @@ def main(argv=None) -> int:
              "with the neutral on frames 0-9 (MediaPipe face mesh, head pose, One Euro filter, then B). Relative "
              "error over B's face area on frames where the expression is at least half on: 0 is exact, 1 is no "
              "better than not moving.", "",
-             "Sources: *painted*: skin, eyebrows and lips painted on A (`painted_face`), lit from above; "
+             "Sources: *portrait*: A's face and eyeballs coloured from the astronaut photo scikit-image ships, "
+             "carried across by MediaPipe's points on both (`portrait_face`), lit from above; "
+             "*painted*: skin, eyebrows and lips painted on A (`painted_face`), lit from above; "
              "*unpainted*: A's parts coloured (skin, sclera, iris, lashes, teeth) but no brows or lips, lit "
              "from the camera. Routes: *motion* follows the tracked points in 3D (`--via motion`, the default); "
              "*FAP* plays the MPEG-4 FAPs the video gives (`--via faps`, what `decode` does with the `.fap`).", "",
              "Diagnosis columns: the gain that would fit the output's motion best to the truth (least squares; 1 "
              "means the size is right, negative the wrong direction), and the error left at that gain (the shape "
              "of the motion, not its size).", ""]
-    for label, painted, via in RUNS:
+    for label, skin, via in RUNS:
         start = time.perf_counter()
-        positions, stream = run(model, A, B, weights, deltas, painted=painted, via=via)
+        positions, stream = run(model, A, B, weights, deltas, skin=skin, via=via)
         seconds = time.perf_counter() - start
         out = positions[:, :FACE_VERTICES]
         lines += [f"## {label} ({seconds:.0f} s)", "",

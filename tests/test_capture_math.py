@@ -7,6 +7,7 @@ import pytest
 from conftest import shared
 
 from faceanim.capture.headframe import restabilise
+from faceanim.capture.jaw import correct_jaw_depth, jaw_carried
 from faceanim.capture.landmarks import FEATURE_POINT_LANDMARK, IBUG68_LANDMARK
 from faceanim.capture.metric import canonical_face, metric_geometry
 from faceanim.capture.neutral import parse_neutral, relaxed_window
@@ -91,6 +92,32 @@ def test_restabilise_keeps_only_expression_and_camera_positions():
     camera_before = np.einsum("tij,tlj->tli", pose[:, :3, :3], seen) + pose[:, None, :3, 3]
     camera_after = np.einsum("tij,tlj->tli", new_pose[:, :3, :3], points) + new_pose[:, None, :3, 3]
     np.testing.assert_allclose(camera_after, camera_before, atol=1e-9)
+
+
+def test_jaw_depth_follows_the_chins_drop():
+    """The jaw turns about its hinge; a tracker that sees its drop but only a third of its swing back
+    gets the swing back, and motion the chin does not share (a smile) is left alone."""
+    rest = canonical_face().vertices
+    carried, chin, hinge = jaw_carried(rest)
+    assert 152 in chin and 17 in carried and 17 not in chin  # the chin; the lower lip rides on the jaw too
+    assert 13 not in carried and 1 not in carried            # not the upper lip, not the nose
+    arm = rest - hinge
+    turn = np.array([0.0, 0.05, 0.1, np.nan])  # radians; the last frame has no face
+    opened = np.zeros((4, 468, 3))
+    opened[:, carried, 1] = -turn[:, None] * arm[carried, 2]
+    opened[:, carried, 2] = turn[:, None] * arm[carried, 1]
+    seen = opened.copy()
+    seen[..., 2] *= 1 / 3
+    smile = np.zeros((468, 3))
+    smile[[61, 291, 84, 17, 314], 1] = [0.4, 0.4, 0.2, 0.2, 0.2]  # on top: mouth corners and lower lip rise
+    smile[[84, 17, 314], 2] = 0.1
+    seen += smile
+    seen[3] = np.nan
+    expected = opened + smile
+    corrected = correct_jaw_depth(rest, seen)
+    np.testing.assert_allclose(corrected[:3], expected[:3], atol=1e-12)
+    assert np.isnan(corrected[3]).all()
+    assert corrected[2, 152, 2] < 0 and corrected[2, 152, 1] < 0  # the chin goes down and back
 
 
 def test_head_angles_follow_mpeg4_words():

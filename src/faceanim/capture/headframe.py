@@ -8,6 +8,7 @@ from ..errors import InputError
 from ..geometry.align import batch_procrustes
 from ..motion import Motion
 from ..mpeg4 import fapu_from_points
+from .jaw import correct_jaw_depth
 from .landmarks import FEATURE_POINT_LANDMARK
 from .metric import canonical_face, metric_geometry_frames
 from .neutral import relaxed_window
@@ -83,6 +84,9 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
                     neutral_points=None) -> Motion:
     """The tracked face's motion.
 
+    The head frame is refitted to the face's own neutral (:func:`restabilise`), and the depth of the
+    points the jaw carries follows the chin's drop (:func:`.jaw.correct_jaw_depth`).
+
     Parameters
     ----------
     track : Track
@@ -124,4 +128,5 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
     except ValueError as exc:
         raise InputError(f"the neutral face gives no usable FAPU ({exc})") from None
     displacements = np.where(usable[:, None, None], points - rest, np.nan)
+    displacements = correct_jaw_depth(rest, displacements)
     return Motion(names, rest, displacements, pose, track.fps, fapu, valid=usable)
