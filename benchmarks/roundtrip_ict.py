@@ -73,8 +73,8 @@ def portrait_face(model, vertices, labelled) -> np.ndarray:
     vertices. Skin outside the photo's face oval takes the face's median colour (the photo has hair and
     a suit there). Only the source is coloured; the target never sees the photo.
     """
-    from matplotlib.path import Path as Outline
     from mediapipe.python.solutions.face_mesh_connections import FACEMESH_FACE_OVAL
+    from skimage.measure import points_in_poly
 
     from faceanim.geometry.rbf import RbfWarp
     from faceanim.portrait import portrait, portrait_landmarks
@@ -97,7 +97,7 @@ def portrait_face(model, vertices, labelled) -> np.ndarray:
     oval = _loop(FACEMESH_FACE_OVAL)
     placed = dict(zip(first, on_face, strict=True))  # MediaPipe index -> vertex, where kept
     outline = vertices[[placed[i] for i in oval if i in placed], :2]
-    inside = Outline(outline).contains_points(vertices[face, :2])
+    inside = points_in_poly(vertices[face, :2], outline)
     skin = np.median(colours[face][inside], axis=0).astype(np.uint8)
     colours[face[~inside]] = skin
     eyes = [k for k, n in enumerate(labelled.part_names) if n.startswith(("M_Sclera", "M_Iris"))]
