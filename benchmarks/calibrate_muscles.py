@@ -24,7 +24,7 @@ from scipy.optimize import minimize
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from facs_ict import face_region, ict_face, ict_table  # noqa: E402
-from ict_scenario import ict_available, load_ict  # noqa: E402
+from ict_scenario import ict_missing, load_ict  # noqa: E402
 
 from faceanim.synth import facs  # noqa: E402
 from faceanim.synth.expression import expression_field  # noqa: E402
@@ -158,8 +158,7 @@ def main(argv=None) -> int:
     parser.add_argument("--write", action="store_true", help="write the calibrated table into the package")
     parser.add_argument("--evaluations", type=int, default=400)
     args = parser.parse_args(argv)
-    if not ict_available():
-        print("skipped: needs ../shared/data/ict_facekit (the shared data folder beside the checkout)")
+    if ict_missing():
         return 0
     model = load_ict()
     face = ict_face(model, model.neutral)

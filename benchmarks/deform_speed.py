@@ -24,7 +24,7 @@ import numpy as np
 from scipy.interpolate import RBFInterpolator
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ict_scenario import _farthest_points, ict_available, load_ict  # noqa: E402
+from ict_scenario import _farthest_points, ict_missing, load_ict  # noqa: E402
 from report import publish  # noqa: E402
 
 from faceanim.geometry import RbfWarp, apply_operator  # noqa: E402
@@ -46,8 +46,7 @@ def main(argv=None) -> int:
     parser.add_argument("--scipy-frames", type=int, default=20)
     parser.add_argument("--repeats", type=int, default=3, help="best of this many timings of faceanim")
     args = parser.parse_args(argv)
-    if not ict_available():
-        print("skipped: needs ../shared/data/ict_facekit (the shared data folder beside the checkout)")
+    if ict_missing():
         return 0
     rng = np.random.default_rng(0)
     model = load_ict()

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ict_scenario import FACE_VERTICES, ICT, _farthest_points, ict_available, load_ict  # noqa: E402
+from ict_scenario import FACE_VERTICES, ICT, _farthest_points, ict_missing, load_ict  # noqa: E402
 from report import publish  # noqa: E402
 
 from faceanim.mpeg4.multipie import MULTIPIE68_OF_FEATURE_POINT  # noqa: E402
@@ -119,8 +119,7 @@ def read_back(model) -> list[tuple[str, int, int, int, float, float]]:
 
 
 def main() -> int:
-    if not ict_available():
-        print("skipped: needs ../shared/data/ict_facekit (the shared data folder beside the checkout)")
+    if ict_missing():
         return 0
     start = time.perf_counter()
     model = load_ict()

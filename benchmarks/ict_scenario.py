@@ -28,6 +28,14 @@ def ict_available() -> bool:
     return (ICT / "ict_deltas_full.npz").exists()
 
 
+def ict_missing() -> bool:
+    """True, after saying so, when the ICT data is absent and a benchmark must skip."""
+    if ict_available():
+        return False
+    print("skipped: needs ../shared/data/ict_facekit (the shared data folder beside the checkout)")
+    return True
+
+
 @dataclass(frozen=True, eq=False)
 class IctModel:
     neutral: np.ndarray            # (26719, 3)

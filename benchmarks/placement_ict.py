@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ict_scenario import ict_available, load_ict  # noqa: E402
+from ict_scenario import ict_missing, load_ict  # noqa: E402
 from report import publish  # noqa: E402
 
 from faceanim.capture.landmarks import IBUG68_LANDMARK  # noqa: E402
@@ -26,8 +26,7 @@ GROUPS = {"jaw": (0, 17), "brows": (17, 27), "nose": (27, 36), "eyes": (36, 48),
 
 
 def main() -> int:
-    if not ict_available():
-        print("skipped: needs ../shared/data/ict_facekit (the shared data folder beside the checkout)")
+    if ict_missing():
         return 0
     model = load_ict()
     mesh = model.mesh(model.neutral)

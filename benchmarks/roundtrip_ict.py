@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ict_scenario import FACE_VERTICES, ICT, ict_available, load_ict, relative_error  # noqa: E402
+from ict_scenario import FACE_VERTICES, ICT, ict_missing, load_ict, relative_error  # noqa: E402
 from report import publish  # noqa: E402
 
 # The OBJ's materials, coloured like a face, so the tracker sees eyes, lashes and mouth as in a video.
@@ -189,8 +189,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=3)
     args = parser.parse_args(argv)
-    if not ict_available():
-        print("skipped: needs ../shared/data/ict_facekit (the shared data folder beside the checkout)")
+    if ict_missing():
         return 0
     rng = np.random.default_rng(args.seed)
     model = load_ict()

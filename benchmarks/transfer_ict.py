@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ict_scenario import control_sets, ict_available, load_ict, relative_error, remade_face  # noqa: E402
+from ict_scenario import control_sets, ict_missing, load_ict, relative_error, remade_face  # noqa: E402
 from report import publish  # noqa: E402
 
 from faceanim.retarget import REGIONS, ControlPairs, DenseTransfer, SparseTransfer, label_regions  # noqa: E402
@@ -43,8 +43,7 @@ def main(argv=None) -> int:
     parser.add_argument("--mixes", type=int, default=20, help="random mixes of three expressions")
     parser.add_argument("--seed", type=int, default=7)
     args = parser.parse_args(argv)
-    if not ict_available():
-        print("skipped: needs ../shared/data/ict_facekit (the shared data folder beside the checkout)")
+    if ict_missing():
         return 0
 
     rng = np.random.default_rng(args.seed)
