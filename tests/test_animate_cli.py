@@ -2,6 +2,7 @@
 
 import json
 
+import numpy as np
 import pytest
 from conftest import khronos_report, shared
 from test_gltf import decode as decode_glb
@@ -57,6 +58,30 @@ def test_animate_a_video_onto_ict(tmp_path):
     with av.open(str(tmp_path / "d0.mp4")) as container:
         first = next(container.decode(video=0))
         assert first.width == 2 * first.height  # the source beside the target
+
+
+def test_animate_takes_its_neutral_and_filter_from_the_command_line(tmp_path, capsys):
+    """--neutral 20:30 makes frames 20-29 the rest: the motion route is linear, so the avatar averaged
+    over them is its rest mesh exactly. The command's --no-filter gives what the pipeline gives
+    unfiltered (to the .glb's morph-target precision), not what it gives filtered. An image as
+    animate's neutral is one line on stderr, with nothing written."""
+    from faceanim import pipeline
+
+    video = shared("videos", "d0.mp4")
+    unfiltered, _ = pipeline.animate(video, tmp_path / "u.glb", neutral="20:30", smoothing=False, progress=False)
+    rest = unfiltered.mesh.vertices
+    np.testing.assert_allclose(unfiltered.positions[20:30].mean(axis=0), rest, atol=1e-9)
+    assert np.abs(unfiltered.positions - rest).max() > 0.05  # yet the face does move
+    filtered, _ = pipeline.animate(video, tmp_path / "f.glb", neutral="20:30", progress=False)
+    out = tmp_path / "n.glb"
+    assert main(["animate", str(video), "-o", str(out), "--neutral", "20:30", "--no-filter"]) == 0
+    frames, _ = decode_glb(out)
+    to_unfiltered = np.abs(frames - unfiltered.positions).max()
+    assert to_unfiltered < 0.2 * np.abs(frames - filtered.positions).max(), to_unfiltered
+    assert main(["animate", str(video), "-o", str(tmp_path / "x.glb"), "--neutral", "face.png"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "animate takes the neutral as FRAME or START:END" in err[0], err
+    assert not (tmp_path / "x.glb").exists()
 
 
 def test_pipeline_argument_errors(tmp_path):

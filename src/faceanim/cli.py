@@ -22,6 +22,13 @@ def _target_arguments(p) -> None:
     group.add_argument("--fdp", metavar="FILE.fdp", help="control points and FAPU from an XfaceEd .fdp file")
 
 
+def _capture_arguments(p, *, image: bool = True, filters: str = "the One Euro temporal filter") -> None:
+    """``--neutral`` (where the face is at rest) and ``--no-filter``, for the commands that track a video."""
+    p.add_argument("--neutral", metavar="FRAME|START:END" + ("|IMAGE" if image else ""),
+                   help="the face at rest (default: the most relaxed half second, found automatically)")
+    p.add_argument("--no-filter", action="store_true", help=f"turn {filters} off")
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="faceanim", description="The motion of a real face onto any 3D face.")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -59,9 +66,7 @@ def _parser() -> argparse.ArgumentParser:
                                         "MPEG-4 facial animation parameters.")
     p.add_argument("source", metavar="VIDEO_OR_TRACK")
     p.add_argument("-o", "--output", required=True, metavar="OUT.fap")
-    p.add_argument("--neutral", metavar="FRAME|START:END|IMAGE",
-                   help="the face at rest (default: the most relaxed half second, found automatically)")
-    p.add_argument("--no-filter", action="store_true", help="turn the One Euro temporal filter off")
+    _capture_arguments(p)
 
     for name, help_text, source in (
             ("animate", "a video of a face drives a 3D face", "VIDEO"),
@@ -80,6 +85,7 @@ def _parser() -> argparse.ArgumentParser:
             p.add_argument("--via", choices=("motion", "faps"), default="motion",
                            help="motion (default): every tracked point the target shares moves it, in 3D; "
                                 "faps: only what the MPEG-4 FAPs carry, as decode would play the .fap")
+            _capture_arguments(p, image=False)
 
     p = commands.add_parser("avatar", help="a textured 3D face from a portrait",
                             description="Make an animatable 3D face from a portrait photo: the tracker's face "
@@ -131,9 +137,7 @@ def _parser() -> argparse.ArgumentParser:
                                         "(frame, timestamp, success, AU01_r, ...) on its 0-5 scale.")
     p.add_argument("video", metavar="VIDEO")
     p.add_argument("-o", "--output", required=True, metavar="AUS.csv")
-    p.add_argument("--neutral", metavar="FRAME|START:END|IMAGE",
-                   help="the face at rest (default: the most relaxed half second, found automatically)")
-    p.add_argument("--no-filter", action="store_true", help="turn the temporal filters off")
+    _capture_arguments(p, filters="the temporal filters (landmarks and AU curves)")
 
     p = commands.add_parser("fap-info", help="summarise a .fap file",
                             description="Frames, fps, active FAPs with their ranges, and values outside MPEG-4's.")
@@ -177,7 +181,8 @@ def main(argv=None) -> int:
             animation, _ = pipeline.animate(args.source, args.output, target_mesh=args.target, points=args.points,
                                             fdp=args.fdp, preview=args.preview, fap=args.fap,
                                             head_motion=args.head_motion, obj_sequence=args.obj_sequence,
-                                            csv=args.csv, via=args.via)
+                                            csv=args.csv, via=args.via, neutral=args.neutral,
+                                            smoothing=not args.no_filter)
             print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
                                                                        else ""))
         elif args.command == "avatar":

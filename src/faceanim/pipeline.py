@@ -334,9 +334,10 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
 
 
 def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=None, fap=None, head_motion=False,
-            progress=None, neutral=None, target=None, obj_sequence=None, csv=None, via="motion"):
+            progress=None, neutral=None, target=None, obj_sequence=None, csv=None, via="motion", smoothing=True):
     """``faceanim animate``: a video of a face drives a target mesh. ``target``, a ready
-    :class:`~faceanim.target.Target`, stands in for the mesh and its points.
+    :class:`~faceanim.target.Target`, stands in for the mesh and its points. ``neutral``: the frames
+    at rest (``FRAME`` or ``START:END``; found automatically when None); ``smoothing``: the One Euro filter.
 
     ``via="motion"`` follows the tracked Motion directly (every point the target shares, in 3D);
     a target sharing too few points (a JSON file of other names) falls back to the FAPs, with a
@@ -344,6 +345,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     from .capture.headframe import head_frame, track_to_motion
     from .capture.neutral import parse_neutral
     from .capture.overlay import overlay_frames
+    from .capture.smoothing import OneEuro
     from .capture.track import track_video
     from .motion import clip_to_range, motion_to_faps
     from .mpeg4.fapfile import write_fap
@@ -359,7 +361,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     target = target or load_target(target_mesh, points=points, fdp=fdp)
     recorded = track_video(video, progress=progress)
     window = None if neutral is None else parse_neutral(str(neutral), len(recorded))
-    motion = track_to_motion(recorded, neutral=window)
+    motion = track_to_motion(recorded, neutral=window, smoothing=OneEuro() if smoothing else None)
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
     if via == "motion" and len(shared_points(motion, target)) < MINIMUM_SHARED_POINTS:
         warnings.warn(f"the target shares only {len(shared_points(motion, target))} control points with the tracker; "
