@@ -67,16 +67,17 @@ def portrait_face(model, vertices, labelled) -> np.ndarray:
     """``(V, 3)`` uint8 colours for the source face taken from a real photo: the astronaut portrait that
     scikit-image ships, carried onto the face by correspondence.
 
-    MediaPipe's points are placed on the source identity (``auto_target``) and found on the photo; a
+    MediaPipe's points are placed on the source identity (``place_landmarks``) and found on the photo; a
     thin-plate warp from the face's front view to the photo then gives every face and eyeball vertex
     its pixel, so the brows, lids, lashes' line, irises and lips are the photo's own and move with the
     vertices. Skin outside the photo's face oval takes the face's median colour (the photo has hair and
     a suit there). Only the source is coloured; the target never sees the photo.
     """
-    from mediapipe.python.solutions.face_mesh_connections import FACEMESH_FACE_OVAL
     from skimage.measure import points_in_poly
 
+    from faceanim.capture.metric import canonical_face
     from faceanim.geometry.rbf import RbfWarp
+    from faceanim.geometry.topology import boundary_loops
     from faceanim.portrait import portrait, portrait_landmarks
     from faceanim.retarget.placement import place_landmarks
 
@@ -94,7 +95,7 @@ def portrait_face(model, vertices, labelled) -> np.ndarray:
     colours = np.zeros((len(vertices), 3), dtype=np.uint8)
     face = np.arange(FACE_VERTICES)
     colours[face] = sample(face)
-    oval = _loop(FACEMESH_FACE_OVAL)
+    oval = boundary_loops(canonical_face().triangles)[0]  # MediaPipe's face mesh is open only round its edge
     placed = dict(zip(first, on_face, strict=True))  # MediaPipe index -> vertex, where kept
     outline = vertices[[placed[i] for i in oval if i in placed], :2]
     inside = points_in_poly(vertices[face, :2], outline)
@@ -105,22 +106,6 @@ def portrait_face(model, vertices, labelled) -> np.ndarray:
     colours[eyeballs] = sample(eyeballs)
     colours[np.setdiff1d(np.arange(FACE_VERTICES, len(vertices)), eyeballs)] = skin
     return colours
-
-
-def _loop(edges) -> list[int]:
-    """The vertices of a closed loop given as an unordered set of edges, in order round it."""
-    neighbours: dict[int, list[int]] = {}
-    for a, b in edges:
-        neighbours.setdefault(a, []).append(b)
-        neighbours.setdefault(b, []).append(a)
-    loop = [next(iter(neighbours))]
-    previous = None
-    while True:
-        step = next(v for v in neighbours[loop[-1]] if v != previous)
-        if step == loop[0]:
-            return loop
-        previous = loop[-1]
-        loop.append(step)
 
 
 SEGMENTS = (("jawOpen", ("jawOpen",)), ("smile", ("mouthSmile_L", "mouthSmile_R")),
