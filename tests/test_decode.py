@@ -6,6 +6,7 @@ from conftest import grid_mesh, shared
 
 from faceanim.errors import FileFormatError, InputError
 from faceanim.geometry import Mesh
+from faceanim.motion import Motion, motion_to_faps
 from faceanim.mpeg4 import FAP_COUNT, Fapu, fap_table
 from faceanim.mpeg4.fapfile import read_fap
 from faceanim.mpeg4.fapstream import FapStream
@@ -199,3 +200,28 @@ def test_outline_points_take_the_depth_mediapipe_predicts():
     depth[rows[1], cols[1]] = 25.0  # past the outline: the ear or the neck behind it
     points = _surface_points(pixels, relative, depth, camera)
     np.testing.assert_allclose(points, camera.unproject(pixels, truth), atol=1e-9)
+
+
+def test_a_jaw_turned_about_its_hinge_encodes_without_thrust_and_decodes_back():
+    target = face_grid()
+    at = {n: target.mesh.vertices[i] for n, i in target.points.items()}
+    # by the decoder's rule the hinge is level with 9.15 and 1.2 MW0 behind the chin (no jaw corners here)
+    hinge = np.array([at["2.1"][0], at["9.15"][1], at["2.1"][2] - 1.2 * target.fapu.mw0])
+    turn = 0.15  # radians, chin down and back
+    c, s = np.cos(turn), np.sin(turn)
+    pitch = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    names = tuple(target.points)
+    neutral = np.array([at[n] for n in names])
+    d = np.zeros((2, len(names), 3))
+    for name in ("2.1", "2.3"):
+        d[1, names.index(name)] = (at[name] - hinge) @ pitch.T + hinge - at[name]
+    motion = Motion(names, neutral, d, np.tile(np.eye(4), (2, 1, 1)), 25.0, target.fapu)
+    stream = motion_to_faps(motion)
+    drop = -d[1, names.index("2.1"), 1]
+    assert stream.values[1, TABLE.number("open_jaw") - 1] == pytest.approx(drop / target.fapu.mns0 * 1024)
+    # the swing that open_jaw implies is the whole of the chin's backward move and of the lip's motion
+    assert stream.values[1, TABLE.number("thrust_jaw") - 1] == pytest.approx(0, abs=1e-6)
+    assert stream.values[1, TABLE.number("raise_b_midlip") - 1] == pytest.approx(0, abs=1e-6)
+    decoded_names, decoded = fap_displacements(stream, target)
+    for name in ("2.1", "2.3"):
+        np.testing.assert_allclose(decoded[1, decoded_names.index(name)], d[1, names.index(name)], atol=1e-9)

@@ -15,15 +15,13 @@ import numpy as np
 
 from .mpeg4 import ANGLE_UNIT, FAP_COUNT, Fapu, fap_table
 from .mpeg4.fapstream import FapStream, fap_ranges
+from .mpeg4.jaw import JAW_CARRIED, jaw_hinge, jaw_swing
 from .validation import as_array
 
 __all__ = ["Motion", "motion_to_faps", "clip_to_range", "head_angles", "relative_head_rotations", "EYEBALL_RADIUS_CM",
            "JAW_CARRIED"]
 
 EYEBALL_RADIUS_CM = 1.2  # an adult eyeball's radius; turns iris shifts into gaze angles
-# Points on the lower lip and chin, which the jaw carries: their FAPs are measured relative to the
-# chin (2.1), since a player applies open_jaw to them first.
-JAW_CARRIED = frozenset({"2.3", "2.8", "2.9", "2.10", "8.2", "8.7", "8.8"})
 
 
 @dataclass(frozen=True, eq=False)
@@ -124,11 +122,13 @@ def motion_to_faps(motion: Motion, *, name: str = "faceanim") -> FapStream:
     """The FAPs a motion's control points observe, frame by frame.
 
     A translational FAP is its feature point's displacement along the FAP's direction, in its FAPU
-    (``shared/mpeg4/faps.csv``); lower-lip and chin points are measured relative to the jaw
-    (:data:`JAW_CARRIED`). Eyeball yaw and pitch (23-26) come from the pupils' shift in the
-    head frame over an eyeball of :data:`EYEBALL_RADIUS_CM` (so the neutral gaze is the zero); head
-    pitch, yaw and roll (48-50) from the pose relative to the first valid frame's. FAPs whose
-    points the motion lacks are absent (mask False); invalid frames carry no FAPs.
+    (``shared/mpeg4/faps.csv``). The jaw is measured as a player will play it: ``open_jaw`` is the
+    chin's drop, and ``thrust_jaw`` and the FAPs of the points the jaw carries (:data:`JAW_CARRIED`)
+    are what is left after the swing that drop implies (:mod:`.mpeg4.jaw`). Eyeball yaw and pitch
+    (23-26) come from the pupils' shift in the head frame over an eyeball of
+    :data:`EYEBALL_RADIUS_CM` (so the neutral gaze is the zero); head pitch, yaw and roll (48-50) from
+    the pose relative to the first valid frame's. FAPs whose points the motion lacks are absent (mask
+    False); invalid frames carry no FAPs.
     """
     table = fap_table()
     T = len(motion)
@@ -136,14 +136,15 @@ def motion_to_faps(motion: Motion, *, name: str = "faceanim") -> FapStream:
     mask = np.zeros((T, FAP_COUNT), dtype=bool)
     units = motion.fapu.scale()
     lookup = {n: i for i, n in enumerate(motion.names)}
-    jaw = motion.displacements[:, lookup["2.1"]] if "2.1" in lookup else 0.0
+    opening = table.number("open_jaw") - 1
+    swing = _jaw_swing_seen(motion, table.direction[opening]) if "2.1" in lookup else None
     for j in range(2, FAP_COUNT):
         points = table.feature_points[j]
         if len(points) != 1 or points[0] not in lookup or not table.direction[j].any():
             continue
         d = motion.displacements[:, lookup[points[0]]]
-        if points[0] in JAW_CARRIED:  # MPEG-4 moves these with open_jaw; their own FAPs are on top of it
-            d = d - jaw
+        if swing is not None and (points[0] in JAW_CARRIED or (points[0] == "2.1" and j != opening)):
+            d = d - swing(motion.neutral[lookup[points[0]]])  # a player swings these with open_jaw first
         values[:, j] = d @ table.direction[j] / units[j]
         mask[:, j] = True
     eyes = {"l": ("3.5", "yaw_l_eyeball", "pitch_l_eyeball"), "r": ("3.6", "yaw_r_eyeball", "pitch_r_eyeball")}
@@ -164,6 +165,15 @@ def motion_to_faps(motion: Motion, *, name: str = "faceanim") -> FapStream:
     mask &= valid[:, None]
     values = np.where(mask, np.nan_to_num(values), 0.0)
     return FapStream(values, mask, motion.fps, name=name)
+
+
+def _jaw_swing_seen(motion: Motion, down: np.ndarray):
+    """The jaw swing (:func:`.mpeg4.jaw.jaw_swing`) a player makes for the chin's drop along ``down`` on
+    each frame, about the hinge of the motion's own neutral face. open_jaw cannot be negative, so a
+    chin above rest makes no swing."""
+    at = dict(zip(motion.names, motion.neutral, strict=True))
+    drop = np.maximum(np.nan_to_num(motion.displacements[:, motion.names.index("2.1")] @ down), 0.0)
+    return jaw_swing(jaw_hinge(at, motion.fapu), at["2.1"], drop)
 
 
 def clip_to_range(stream: FapStream) -> tuple[FapStream, int]:

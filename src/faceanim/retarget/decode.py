@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.animation import Animation
-from ..motion import JAW_CARRIED
 from ..mpeg4 import ANGLE_UNIT, fap_table, feature_points
 from ..mpeg4.fapstream import FapStream
+from ..mpeg4.jaw import JAW_CARRIED, jaw_hinge, jaw_swing
 from ..target import Target
 from .transfer import SparseTransfer
 
@@ -40,43 +40,16 @@ def fap_displacements(stream: FapStream, target: Target) -> tuple[tuple[str, ...
         step = values[:, j:j + 1] * scale[j] * table.direction[j]
         moved[points[0]] = moved.get(points[0], 0.0) + step
     if "2.1" in moved:
-        jaw = _jaw_swing(target, values[:, table.number("open_jaw") - 1] * scale[table.number("open_jaw") - 1])
-        for name in ("2.1", *sorted(JAW_CARRIED)):  # the points encoding measured relative to the jaw
+        opening = table.number("open_jaw") - 1
+        at = {n: target.mesh.vertices[i] for n, i in target.points.items()}
+        jaw = jaw_swing(jaw_hinge(at, target.fapu), at["2.1"], values[:, opening] * scale[opening])
+        for name in ("2.1", *sorted(JAW_CARRIED)):  # the points encoding measured after the jaw's swing
             if name in target.points:
-                others = moved.get(name, 0.0) - (values[:, 2:3] * scale[2] * table.direction[2] if name == "2.1" else 0)
-                moved[name] = others + jaw(target.mesh.vertices[target.points[name]])
+                drop = values[:, opening:opening + 1] * scale[opening] * table.direction[opening]
+                others = moved.get(name, 0.0) - (drop if name == "2.1" else 0)
+                moved[name] = others + jaw(at[name])
     names = tuple(moved)
     return names, np.stack([moved[n] for n in names], axis=1) if names else np.zeros((len(stream), 0, 3))
-
-
-def _jaw_swing(target: Target, drop: np.ndarray):
-    """Displacements of jaw points for chin drops ``drop (T,)`` (model units, down positive).
-
-    open_jaw is the chin's vertical drop; a real jaw gets it by turning about its hinge, which also
-    carries the chin and lower lip backwards. The hinge is taken level with the bottom of the nose
-    (9.15) and as far back as the jaw corners (2.13/2.14), or 1.2 MW0 behind the chin without them.
-    The angle is solved so the chin's vertical drop is exactly the FAP's.
-    """
-    v, p = target.mesh.vertices, target.points
-    chin = v[p["2.1"]]
-    hinge_y = v[p["9.15"]][1] if "9.15" in p else chin[1] + 2 * target.fapu.mns0
-    corners = [v[p[n]][2] for n in ("2.13", "2.14") if n in p]
-    hinge_z = np.mean(corners) if corners else chin[2] - 1.2 * target.fapu.mw0
-    hinge = np.array([chin[0], hinge_y, hinge_z])
-    arm = chin - hinge
-    # The chin falls by a (1 - cos t) + b sin t = a + R sin(t + phi) after turning by t; solve for t.
-    a, b = arm[1], arm[2]
-    radius, phi = np.hypot(a, b), np.arctan2(-a, b)
-    theta = np.arcsin(np.clip((drop - a) / radius, -1.0, 1.0)) - phi
-
-    def swing(point):
-        r = point - hinge
-        c, s = np.cos(theta), np.sin(theta)
-        y = r[1] * c - r[2] * s
-        z = r[1] * s + r[2] * c
-        return np.stack([np.zeros_like(theta), y - r[1], z - r[2]], axis=1)
-
-    return swing
 
 
 def head_rotations(stream: FapStream) -> np.ndarray:
