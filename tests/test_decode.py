@@ -207,21 +207,30 @@ def test_a_jaw_turned_about_its_hinge_encodes_without_thrust_and_decodes_back():
     at = {n: target.mesh.vertices[i] for n, i in target.points.items()}
     # by the decoder's rule the hinge is level with 9.15 and 1.2 MW0 behind the chin (no jaw corners here)
     hinge = np.array([at["2.1"][0], at["9.15"][1], at["2.1"][2] - 1.2 * target.fapu.mw0])
-    turn = 0.15  # radians, chin down and back
-    c, s = np.cos(turn), np.sin(turn)
-    pitch = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
     names = tuple(target.points)
     neutral = np.array([at[n] for n in names])
-    d = np.zeros((2, len(names), 3))
-    for name in ("2.1", "2.3"):
-        d[1, names.index(name)] = (at[name] - hinge) @ pitch.T + hinge - at[name]
-    motion = Motion(names, neutral, d, np.tile(np.eye(4), (2, 1, 1)), 25.0, target.fapu)
+    d = np.zeros((3, len(names), 3))
+    for t, turn in ((1, 0.15), (2, 0.6)):  # a small opening, and one wider than an exact rotation reaches
+        for name in ("2.1", "2.3"):
+            r = at[name] - hinge
+            d[t, names.index(name)] = turn * np.array([0, -r[2], r[1]])  # down and back, first order
+    motion = Motion(names, neutral, d, np.tile(np.eye(4), (3, 1, 1)), 25.0, target.fapu)
     stream = motion_to_faps(motion)
-    drop = -d[1, names.index("2.1"), 1]
-    assert stream.values[1, TABLE.number("open_jaw") - 1] == pytest.approx(drop / target.fapu.mns0 * 1024)
+    drops = -d[1:, names.index("2.1"), 1]
+    np.testing.assert_allclose(stream.values[1:, TABLE.number("open_jaw") - 1], drops / target.fapu.mns0 * 1024)
     # the swing that open_jaw implies is the whole of the chin's backward move and of the lip's motion
-    assert stream.values[1, TABLE.number("thrust_jaw") - 1] == pytest.approx(0, abs=1e-6)
-    assert stream.values[1, TABLE.number("raise_b_midlip") - 1] == pytest.approx(0, abs=1e-6)
+    np.testing.assert_allclose(stream.values[1:, TABLE.number("thrust_jaw") - 1], 0, atol=1e-6)
+    np.testing.assert_allclose(stream.values[1:, TABLE.number("raise_b_midlip") - 1], 0, atol=1e-6)
     decoded_names, decoded = fap_displacements(stream, target)
     for name in ("2.1", "2.3"):
-        np.testing.assert_allclose(decoded[1, decoded_names.index(name)], d[1, names.index(name)], atol=1e-9)
+        np.testing.assert_allclose(decoded[:, decoded_names.index(name)], d[:, names.index(name)], atol=1e-9)
+
+
+def test_the_jaw_swings_from_behind_the_chin_even_when_its_corners_are_placed_in_front():
+    target = face_grid()
+    points = dict(target.points)
+    points["2.13"] = points["2.14"] = points["2.2"]  # on a flat grid: level with the chin, not behind it
+    odd = Target(target.mesh, points, target.fapu)
+    names, d = fap_displacements(stream_of({(1, "open_jaw"): 1024}), odd)
+    chin = d[1, names.index("2.1")]
+    assert chin[1] == pytest.approx(-target.fapu.mns0) and chin[2] < 0  # down by the FAP, and backwards

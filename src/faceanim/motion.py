@@ -18,8 +18,7 @@ from .mpeg4.fapstream import FapStream, fap_ranges
 from .mpeg4.jaw import JAW_CARRIED, jaw_hinge, jaw_swing
 from .validation import as_array
 
-__all__ = ["Motion", "motion_to_faps", "clip_to_range", "head_angles", "relative_head_rotations", "EYEBALL_RADIUS_CM",
-           "JAW_CARRIED"]
+__all__ = ["Motion", "motion_to_faps", "clip_to_range", "head_angles", "relative_head_rotations", "EYEBALL_RADIUS_CM"]
 
 EYEBALL_RADIUS_CM = 1.2  # an adult eyeball's radius; turns iris shifts into gaze angles
 

@@ -3,7 +3,7 @@
 The encoder and the decoder share this model. The decoder swings the chin and the points the jaw
 carries (lower lip, chin contour); the encoder measures ``thrust_jaw`` and the carried points' own
 FAPs after taking the same swing out, so a stream encoded from a face and decoded onto it gives the
-face back instead of swinging the jaw back twice.
+face back.
 """
 
 from __future__ import annotations
@@ -25,32 +25,33 @@ def jaw_hinge(points: Mapping[str, np.ndarray], fapu: Fapu) -> np.ndarray:
     """The hinge ``(3,)`` for a face whose feature points are ``points`` (name -> position; needs 2.1).
 
     Level with the bottom of the nose (9.15) and as far back as the jaw corners (2.13/2.14); without
-    them, 2 MNS0 above the chin and 1.2 MW0 behind it.
+    them, or where they are not behind the chin (a mesh placed oddly), 2 MNS0 above the chin and
+    1.2 MW0 behind it.
     """
     chin = np.asarray(points["2.1"], dtype=np.float64)
     hinge_y = points["9.15"][1] if "9.15" in points else chin[1] + 2 * fapu.mns0
     corners = [points[n][2] for n in ("2.13", "2.14") if n in points]
-    hinge_z = np.mean(corners) if corners else chin[2] - 1.2 * fapu.mw0
+    hinge_z = np.mean(corners) if corners and np.mean(corners) < chin[2] else chin[2] - 1.2 * fapu.mw0
     return np.array([chin[0], hinge_y, hinge_z])
 
 
 def jaw_swing(hinge: np.ndarray, chin: np.ndarray, drop: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """For chin drops ``drop (T,)`` (down positive, model units), a function from a point ``(3,)`` on
-    the jaw to its displacements ``(T, 3)``: a turn about the hinge's x axis, solved so the chin's
-    vertical drop is exactly ``drop``."""
-    arm = np.asarray(chin, dtype=np.float64) - hinge
-    # The chin falls by a (1 - cos t) + b sin t = a + R sin(t + phi) after turning by t; solve for t.
-    a, b = arm[1], arm[2]
-    radius, phi = np.hypot(a, b), np.arctan2(-a, b)
-    drop = np.asarray(drop, dtype=np.float64)
-    theta = np.arcsin(np.clip((drop - a) / radius, -1.0, 1.0)) - phi
-    theta[drop == 0] = 0.0  # exactly at rest, not a rounding error away from it
-    c, s = np.cos(theta), np.sin(theta)
+    the jaw to its displacements ``(T, 3)``.
+
+    The jaw turns about the hinge's x axis, to first order: a turn by ``t`` moves a point ``p`` by
+    ``t * (0, -r_z, r_y)`` with ``r = p - hinge``, and ``t`` is chosen so the chin drops by exactly
+    ``drop``. An exact rotation cannot do that: about a hinge this close behind the chin, the drop it
+    can reach tops out (at 1.4 cm on MediaPipe's face), and a wide-open jaw would swing the chin
+    straight back instead. The first-order turn always meets the FAP's drop, and is linear in it.
+    """
+    arm_z = float(np.asarray(chin, dtype=np.float64)[2] - hinge[2])
+    if arm_z <= 0:
+        raise ValueError(f"the jaw's hinge must lie behind the chin, got {arm_z:g} in front")
+    turn = np.asarray(drop, dtype=np.float64) / arm_z
 
     def swing(point: np.ndarray) -> np.ndarray:
         r = np.asarray(point, dtype=np.float64) - hinge
-        y = r[1] * c - r[2] * s
-        z = r[1] * s + r[2] * c
-        return np.stack([np.zeros_like(theta), y - r[1], z - r[2]], axis=1)
+        return turn[:, None] * np.array([0.0, -r[2], r[1]])
 
     return swing
