@@ -137,8 +137,8 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
     from .export import MorphSet, morphs_from_animation, write_glb
     from .geometry import write_mesh
     from .geometry.animation import Animation
+    from .inputs import load_target
     from .mpeg4.fapfile import write_fap
-    from .pipeline import load_target
     from .synth.expression import au_fields
 
     output = Path(output)
@@ -190,7 +190,7 @@ def aus(video, output, *, neutral=None, smoothing=True, progress=None):
     from .capture.smoothing import OneEuro, one_euro
     from .export.curves import write_au_csv
     from .generic import landmark_target
-    from .pipeline import capture_motion
+    from .inputs import capture_motion
     from .synth import MuscleFace
     from .synth.fitting import AuFitter, bilateral
 

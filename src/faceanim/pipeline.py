@@ -4,7 +4,6 @@ each other, computes, and writes its output completely or not at all."""
 from __future__ import annotations
 
 import json
-import sys
 import warnings
 from pathlib import Path
 
@@ -13,6 +12,7 @@ import numpy as np
 from .errors import FileFormatError, InputError
 from .expressions import aus, express  # the expression jobs live in their own module; re-exported here
 from .geometry import read_mesh, write_mesh
+from .inputs import capture_motion, load_target, motion_of_track
 from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
 
 __all__ = ["transfer", "read_pairs", "track", "encode", "fap_info", "avatar",
@@ -136,34 +136,6 @@ def _write_landmark_csv(result, path) -> None:
         tmp.write_text("\n".join(rows) + "\n")
 
 
-def capture_motion(source, *, neutral=None, smoothing=True, progress=None):
-    """The Motion of a video (or of a saved ``.npz`` track)."""
-    from .capture.headframe import head_frame, track_to_motion
-    from .capture.neutral import parse_neutral
-    from .capture.smoothing import OneEuro
-    from .capture.track import Track, track_video
-    from .capture.tracker import TrackerOptions
-
-    source = Path(source)
-    recorded = Track.load(source) if source.suffix == ".npz" else track_video(source, progress=progress)
-    gaps = recorded.gaps()
-    if gaps:
-        frames = sum(b - a + 1 for a, b in gaps)
-        print(f"faceanim: {source}: {frames} frames in {len(gaps)} stretches have no face "
-              f"(first: frames {gaps[0][0]}-{gaps[0][1]}); they carry no FAPs", file=sys.stderr)
-    window = neutral_points = None
-    if neutral is not None:
-        choice = parse_neutral(str(neutral), len(recorded))
-        if isinstance(choice, tuple):
-            window = choice
-        else:
-            still = track_video(choice, options=TrackerOptions(static=True), progress=False)
-            points, _ = head_frame(still)
-            neutral_points = points[0]
-    return track_to_motion(recorded, neutral=window, smoothing=OneEuro() if smoothing else None,
-                           neutral_points=neutral_points)
-
-
 def encode(source, output, *, neutral=None, smoothing=True, progress=None):
     """``faceanim encode``: video or track -> ``.fap``. Returns (stream, number of clipped values)."""
     from .motion import clip_to_range, motion_to_faps
@@ -218,32 +190,6 @@ def avatar(photo, output):
     target = avatar_target(photo)
     write_glb(output, target.mesh, extras={"points": target.points})
     return target
-
-
-def load_target(mesh_path=None, *, points=None, fdp=None):
-    """A Target from a mesh file and its control points, taken from, in order: a JSON file, an Xface
-    ``.fdp``, the points a faceanim ``.glb`` carries, automatic placement (render, track, cast back).
-    With no mesh, the avatar of the embedded portrait (see :func:`avatar_target`)."""
-    from .geometry.meshio import glb_extras
-    from .portrait import avatar_target
-    from .retarget.placement import auto_target
-    from .target import Target, target_from_fdp, target_from_json
-
-    if points is not None and fdp is not None:
-        raise InputError("give the control points once: --points or --fdp, not both")
-    if mesh_path is None:
-        if points is not None or fdp is not None:
-            raise InputError("--points and --fdp describe a --target mesh; give the mesh too")
-        return avatar_target()
-    mesh = read_mesh(mesh_path)
-    if points is not None:
-        return target_from_json(mesh, points)
-    if fdp is not None:
-        return target_from_fdp(mesh, fdp)
-    carried = glb_extras(mesh_path).get("points")
-    if isinstance(carried, dict):
-        return Target.from_points(mesh, carried, source=str(mesh_path))
-    return auto_target(mesh)
 
 
 def _check_output(path, suffixes=(".glb",)) -> Path:
@@ -342,10 +288,9 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     ``via="motion"`` follows the tracked Motion directly (every point the target shares, in 3D);
     a target sharing too few points (a JSON file of other names) falls back to the FAPs, with a
     warning. ``via="faps"`` plays the FAP stream, as ``decode`` would play the ``.fap`` file."""
-    from .capture.headframe import head_frame, track_to_motion
+    from .capture.headframe import head_frame
     from .capture.neutral import parse_neutral
     from .capture.overlay import overlay_frames
-    from .capture.smoothing import OneEuro
     from .capture.track import track_video
     from .motion import clip_to_range, motion_to_faps
     from .mpeg4.fapfile import write_fap
@@ -360,8 +305,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
         raise InputError("animate takes the neutral as FRAME or START:END")  # said before any work is done
     target = target or load_target(target_mesh, points=points, fdp=fdp)
     recorded = track_video(video, progress=progress)
-    window = None if neutral is None else parse_neutral(str(neutral), len(recorded))
-    motion = track_to_motion(recorded, neutral=window, smoothing=OneEuro() if smoothing else None)
+    motion = motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
     if via == "motion" and len(shared_points(motion, target)) < MINIMUM_SHARED_POINTS:
         warnings.warn(f"the target shares only {len(shared_points(motion, target))} control points with the tracker; "

@@ -1,0 +1,76 @@
+"""What the jobs read: a `Target` from the files a person names, and a `Motion` from a video or a
+saved track. ``pipeline`` and ``expressions`` both use these (``pipeline`` re-exports them), so
+neither of the two job modules imports the other."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from .errors import InputError
+from .geometry import read_mesh
+
+__all__ = ["load_target", "capture_motion", "motion_of_track"]
+
+
+def load_target(mesh_path=None, *, points=None, fdp=None):
+    """A Target from a mesh file and its control points, taken from, in order: a JSON file, an Xface
+    ``.fdp``, the points a faceanim ``.glb`` carries, automatic placement (render, track, cast back).
+    With no mesh, the avatar of the embedded portrait (see :func:`avatar_target`)."""
+    from .geometry.meshio import glb_extras
+    from .portrait import avatar_target
+    from .retarget.placement import auto_target
+    from .target import Target, target_from_fdp, target_from_json
+
+    if points is not None and fdp is not None:
+        raise InputError("give the control points once: --points or --fdp, not both")
+    if mesh_path is None:
+        if points is not None or fdp is not None:
+            raise InputError("--points and --fdp describe a --target mesh; give the mesh too")
+        return avatar_target()
+    mesh = read_mesh(mesh_path)
+    if points is not None:
+        return target_from_json(mesh, points)
+    if fdp is not None:
+        return target_from_fdp(mesh, fdp)
+    carried = glb_extras(mesh_path).get("points")
+    if isinstance(carried, dict):
+        return Target.from_points(mesh, carried, source=str(mesh_path))
+    return auto_target(mesh)
+
+
+def capture_motion(source, *, neutral=None, smoothing=True, progress=None):
+    """The Motion of a video (or of a saved ``.npz`` track). ``neutral``: ``FRAME``, ``START:END`` or
+    an image of the same face at rest; found automatically when None."""
+    from .capture.track import Track, track_video
+
+    source = Path(source)
+    recorded = Track.load(source) if source.suffix == ".npz" else track_video(source, progress=progress)
+    gaps = recorded.gaps()
+    if gaps:
+        frames = sum(b - a + 1 for a, b in gaps)
+        print(f"faceanim: {source}: {frames} frames in {len(gaps)} stretches have no face "
+              f"(first: frames {gaps[0][0]}-{gaps[0][1]}); they carry no FAPs", file=sys.stderr)
+    return motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
+
+
+def motion_of_track(recorded, *, neutral=None, smoothing=True):
+    """The Motion of a Track: its neutral from ``FRAME``, ``START:END``, an image of the face at rest,
+    or found automatically (None); ``smoothing``: the One Euro filter."""
+    from .capture.headframe import head_frame, track_to_motion
+    from .capture.neutral import parse_neutral
+    from .capture.smoothing import OneEuro
+    from .capture.track import track_video
+    from .capture.tracker import TrackerOptions
+
+    window = neutral_points = None
+    if neutral is not None:
+        choice = parse_neutral(str(neutral), len(recorded))
+        if isinstance(choice, tuple):
+            window = choice
+        else:
+            still = track_video(choice, options=TrackerOptions(static=True), progress=False)
+            points, _ = head_frame(still)
+            neutral_points = points[0]
+    return track_to_motion(recorded, neutral=window, smoothing=OneEuro() if smoothing else None,
+                           neutral_points=neutral_points)
