@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from faceanim.mpeg4 import FAP_COUNT, Fapu, fap_table, fapu_from_points, feature_points
+from faceanim.mpeg4 import FAP_COUNT, Fapu, fap_table, fapu_from_points, feature_points, metres_per_unit
 
 
 def test_tables_have_every_fap_and_feature_point():
@@ -69,3 +69,22 @@ def test_curve_columns_are_the_low_level_faps_some_frame_carries():
     mask[1, 2] = mask[2, 47] = True
     stream = FapStream(np.zeros((3, 68)), mask, 25.0, visemes=np.zeros((3, 4), np.int64))
     assert curve_columns(stream).tolist() == [2, 47]
+
+
+@pytest.mark.parametrize("scale, unit", [(1.0, 0.01), (0.01, 1.0), (10.0, 0.001), (0.1, 0.1)])
+def test_the_unit_of_a_face_is_told_from_its_eye_separation(scale, unit):
+    centimetres = np.array([1.0, 6.3, 4.6, 3.0, 5.0])  # IRISD0, ES0, ENS0, MNS0, MW0 of an adult, in cm
+    fapu = Fapu(*(centimetres * scale))  # the same face in cm, m, mm and a model normalised to ~2 units tall
+    assert metres_per_unit(fapu) == unit
+    assert fapu.es0 * unit == pytest.approx(0.063)  # 6.3 cm, whatever the unit
+    assert metres_per_unit(Fapu(*(centimetres * scale * 3))) == unit  # a wide face keeps its unit
+    assert metres_per_unit(Fapu(*(centimetres * scale * 0.35))) == unit  # a child's keeps it too
+
+
+@pytest.mark.parametrize("es0, message", [
+    (0.01, r"es0 \(eye separation\) of 0.01 model units is no human face .*\(1 cm as metres; expected 2 to 20 cm\)"),
+    (500.0, r"es0 \(eye separation\) of 500 model units is no human face .*\(50 cm as millimetres;"),
+])
+def test_a_face_of_no_human_size_has_no_unit(es0, message):
+    with pytest.raises(ValueError, match=message):
+        metres_per_unit(Fapu(irisd0=1.0, es0=es0, ens0=1.0, mns0=1.0, mw0=1.0))

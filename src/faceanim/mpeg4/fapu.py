@@ -10,9 +10,11 @@ import numpy as np
 from ..validation import as_array
 from .tables import fap_table
 
-__all__ = ["Fapu", "fapu_from_points", "ANGLE_UNIT"]
+__all__ = ["Fapu", "fapu_from_points", "metres_per_unit", "ANGLE_UNIT"]
 
 ANGLE_UNIT = 1e-5  # radians per AU
+HUMAN_ES0 = 0.063  # metres: a typical adult's eye separation (pupil to pupil)
+_UNITS = {1.0: "metre", 0.1: "decimetre", 0.01: "centimetre", 0.001: "millimetre"}
 
 
 @dataclass(frozen=True)
@@ -88,3 +90,44 @@ def fapu_from_points(points: Mapping[str, np.ndarray]) -> Fapu:
         mns0=p["9.15"][1] - p["2.2"][1],
         mw0=p["8.3"][0] - p["8.4"][0],
     )
+
+
+def metres_per_unit(fapu: Fapu) -> float:
+    """Metres per model unit of a face, told from its size: the power of ten among the metre, decimetre,
+    centimetre and millimetre that makes its eye separation ES0 human.
+
+    A person's eyes sit about 6.3 cm apart; each candidate unit accepts an ES0 within a factor of
+    sqrt(10) of that (2 to 20 cm), so exactly one fits any ES0 from 0.02 to 200 model units. The
+    decimetre is there for faces normalised to a height of one or two units. A face whose eyes would be
+    under 2 cm apart even in metres, or over 20 cm apart even in millimetres, is refused.
+
+    Parameters
+    ----------
+    fapu : Fapu
+        The face's FAPU (model units); only ``es0`` is used.
+
+    Returns
+    -------
+    float
+        1.0, 0.1, 0.01 or 0.001.
+
+    Raises
+    ------
+    ValueError
+        ES0 fits none of the units (the message gives ES0 and what it would mean).
+
+    Examples
+    --------
+    >>> metres_per_unit(Fapu(irisd0=1.0, es0=6.8, ens0=4.8, mns0=1.6, mw0=6.9))  # a face in centimetres
+    0.01
+    >>> metres_per_unit(Fapu(irisd0=10.0, es0=62.0, ens0=48.0, mns0=16.0, mw0=50.0))  # in millimetres
+    0.001
+    """
+    es0 = float(fapu.es0)
+    unit = 10.0 ** -round(np.log10(es0 / HUMAN_ES0))  # the nearest power of ten, in log
+    unit = min(_UNITS, key=lambda u: abs(u - unit))
+    if not HUMAN_ES0 / np.sqrt(10) <= es0 * unit <= HUMAN_ES0 * np.sqrt(10):
+        raise ValueError(f"FAPU es0 (eye separation) of {es0:g} model units is no human face in metres, "
+                         f"decimetres, centimetres or millimetres ({es0 * unit * 100:g} cm as {_UNITS[unit]}s; "
+                         "expected 2 to 20 cm)")
+    return unit
