@@ -5,10 +5,18 @@ PLY keeps one UV per vertex, so a mesh with UV seams is written to PLY without U
 is kept). A GLB written here stores each vertex's original index in the custom attribute ``_SOURCE_VERTEX``,
 so reading it back restores the exact vertex order and welds the copies made at UV seams. A glTF
 from elsewhere is read as it is laid out (one vertex per distinct position and UV).
+
+A ``.glb`` written by :func:`faceanim.export.write_glb` is in metres, as glTF says, and records the
+model's own unit in its mesh's ``extras["faceanim"]["metres_per_unit"]``; reading divides it out, so
+the mesh comes back in the units it was written from (to float32 precision), not in metres. Its part
+labels (``extras["faceanim"]["parts"]``: ``part_names`` and ``part_runs``, run-length encoded
+``[label, count]`` pairs in triangle order) come back as :attr:`Mesh.parts` and :attr:`Mesh.part_names`.
+Other ``.glb`` files are read in metres, without parts.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +26,12 @@ from ..errors import FileFormatError, InputError
 from .mesh import Mesh
 from .obj import read_obj, write_obj
 
-__all__ = ["read_mesh", "write_mesh", "read_glb_json", "glb_extras", "MESH_SUFFIXES", "SOURCE_VERTEX_ATTRIBUTE"]
+__all__ = ["read_mesh", "write_mesh", "read_glb_json", "glb_extras", "MESH_SUFFIXES", "SOURCE_VERTEX_ATTRIBUTE",
+           "UNIT_EXTRA", "PARTS_EXTRA"]
 
 SOURCE_VERTEX_ATTRIBUTE = "_SOURCE_VERTEX"
+UNIT_EXTRA = "metres_per_unit"  # the keys of a faceanim .glb's extras["faceanim"] that read_mesh uses
+PARTS_EXTRA = "parts"
 
 
 def _suffix(path: Path) -> str:
@@ -73,6 +84,36 @@ def _weld(path, vertices, triangles, uv, texture, source) -> Mesh:
                 texture=texture)
 
 
+def _read_glb(path: Path) -> Mesh:
+    """A ``.glb`` through trimesh; for one written by faceanim, in the model's own units and with its parts."""
+    mesh = _read_with_trimesh(path)
+    extras = glb_extras(path)
+    changes = {}
+    if UNIT_EXTRA in extras:
+        unit = extras[UNIT_EXTRA]
+        if isinstance(unit, bool) or not isinstance(unit, (int, float)) or not np.isfinite(unit) or unit <= 0:
+            raise FileFormatError(path, f"extras faceanim.{UNIT_EXTRA} must be a positive number, got {unit!r}")
+        changes["vertices"] = mesh.vertices / unit
+    if PARTS_EXTRA in extras:
+        changes["parts"], changes["part_names"] = _parts_of_runs(path, extras[PARTS_EXTRA], len(mesh.triangles))
+    return replace(mesh, **changes) if changes else mesh
+
+
+def _parts_of_runs(path: Path, stored, count: int) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Per-triangle labels ``(F,)`` and part names from ``{"part_names": [...], "part_runs": [[label, n], ...]}``."""
+    try:
+        names = tuple(str(n) for n in stored["part_names"])
+        runs = np.asarray(stored["part_runs"], dtype=np.int64).reshape(-1, 2)
+    except (KeyError, TypeError, ValueError):
+        raise FileFormatError(path, f"extras faceanim.{PARTS_EXTRA} must hold part_names and part_runs "
+                                    "([label, count] pairs)") from None
+    labels, lengths = runs[:, 0], runs[:, 1]
+    if (lengths < 1).any() or lengths.sum() != count or (labels < 0).any() or (labels >= len(names)).any():
+        raise FileFormatError(path, f"extras faceanim.{PARTS_EXTRA} does not label its {count} triangles with its "
+                                    f"{len(names)} part names")
+    return np.repeat(labels, lengths), names
+
+
 def _write_with_trimesh(path: Path, mesh: Mesh, file_type: str) -> None:
     import trimesh
 
@@ -99,7 +140,7 @@ _READERS = {
     ".obj": read_obj,
     ".obj.gz": read_obj,
     ".ply": _read_with_trimesh,
-    ".glb": _read_with_trimesh,
+    ".glb": _read_glb,
     ".gltf": _read_with_trimesh,
 }
 _WRITERS = {
