@@ -176,10 +176,12 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
             weights = np.hstack([animated.weights, np.zeros((len(fields), len(codes)))])
             names = (*animated.names, *(f"AU{c}" for c in codes))
             morphs = MorphSet(np.concatenate([animated.targets, sliders]), names, weights, fps)
+        from .mpeg4 import metres_per_unit
         from .synth.facs import recipe_text
 
         write_glb(output, target.mesh, morphs, extras={"points": target.points, "recipe": recipe_text(made),
-                                                       "au_faps": au_fap_table(face, codes, sliders)})
+                                                       "au_faps": au_fap_table(face, codes, sliders)},
+                  metres_per_unit=metres_per_unit(target.fapu))
     return fields, made
 
 

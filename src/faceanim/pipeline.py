@@ -184,11 +184,12 @@ def avatar(photo, output):
     """``faceanim avatar``: a textured 3D face from a portrait, written as a ``.glb`` that carries its
     control points (so it animates without placement). Returns the Target."""
     from .export import write_glb
+    from .mpeg4 import metres_per_unit
     from .portrait import avatar_target
 
     output = _check_output(output)
     target = avatar_target(photo)
-    write_glb(output, target.mesh, extras={"points": target.points})
+    write_glb(output, target.mesh, extras={"points": target.points}, metres_per_unit=metres_per_unit(target.fapu))
     return target
 
 
@@ -220,10 +221,12 @@ def _write_extra_outputs(animation, stream, obj_sequence, csv) -> None:
         write_obj_sequence(obj_sequence, animation)
 
 
-def _write_glb(path, animation) -> None:
+def _write_glb(path, animation, target) -> None:
+    """``animation`` as a ``.glb``, in metres (the target's unit told from its FAPU)."""
     from .export import morphs_from_animation, write_glb
+    from .mpeg4 import metres_per_unit
 
-    write_glb(path, animation.mesh, morphs_from_animation(animation))
+    write_glb(path, animation.mesh, morphs_from_animation(animation), metres_per_unit=metres_per_unit(target.fapu))
 
 
 def _letterbox(image: np.ndarray, size: int) -> np.ndarray:
@@ -272,7 +275,7 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     stream = read_fap(fap_path)
     target = target or load_target(target_mesh, points=points, fdp=fdp)
     animation = animate_faps(stream, target, head_motion=head_motion)
-    _write_glb(output, animation)
+    _write_glb(output, animation, target)
     _write_extra_outputs(animation, stream, obj_sequence, csv)
     if preview is not None:
         _preview(preview, animation, target)
@@ -315,7 +318,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
         animation = animate_motion(motion, target, head_motion=head_motion)
     else:
         animation = animate_faps(stream, target, head_motion=head_motion)
-    _write_glb(output, animation)
+    _write_glb(output, animation, target)
     _write_extra_outputs(animation, stream, obj_sequence, csv)
     if fap is not None:
         write_fap(fap, stream)
