@@ -61,16 +61,19 @@ def test_animate_a_video_onto_ict(tmp_path):
 
 
 def test_animate_takes_its_neutral_and_filter_from_the_command_line(tmp_path, capsys):
-    """--neutral 20:30 makes frames 20-29 the rest: the motion route is linear, so the avatar averaged
-    over them is its rest mesh exactly. The command's --no-filter gives what the pipeline gives
-    unfiltered (to the .glb's morph-target precision), not what it gives filtered. An image as
-    animate's neutral is one line on stderr, with nothing written."""
+    """--neutral 20:30 makes frames 20-29 the rest: the avatar averaged over them is its rest mesh (to
+    the second order of the jaw's small turns there; the eyeballs, which turn with the tracked gaze,
+    are left out). The command's --no-filter gives what the pipeline gives unfiltered (to the .glb's
+    morph-target precision), not what it gives filtered. An image as animate's neutral is one line on stderr, with nothing written."""
     from faceanim import pipeline
+    from faceanim.inputs import load_target
+    from faceanim.parts import face_parts
 
     video = shared("videos", "d0.mp4")
     unfiltered, _ = pipeline.animate(video, tmp_path / "u.glb", neutral="20:30", smoothing=False, progress=False)
     rest = unfiltered.mesh.vertices
-    np.testing.assert_allclose(unfiltered.positions[20:30].mean(axis=0), rest, atol=1e-9)
+    still = ~face_parts(load_target(None)).mask("eye_left", "eye_right")
+    np.testing.assert_allclose(unfiltered.positions[20:30].mean(axis=0)[still], rest[still], atol=2e-3)
     assert np.abs(unfiltered.positions - rest).max() > 0.05  # yet the face does move
     filtered, _ = pipeline.animate(video, tmp_path / "f.glb", neutral="20:30", progress=False)
     out = tmp_path / "n.glb"

@@ -9,7 +9,8 @@ from ..mpeg4 import ANGLE_UNIT, fap_table, feature_points
 from ..mpeg4.fapstream import FapStream
 from ..mpeg4.jaw import JAW_CARRIED, jaw_hinge, jaw_swing
 from ..target import Target
-from .transfer import SparseTransfer
+from .deform import deform_parts
+from ..parts import FaceParts
 
 __all__ = ["fap_displacements", "animate_faps", "held", "turn_head"]
 
@@ -69,11 +70,13 @@ def head_rotations(stream: FapStream) -> np.ndarray:
     return R
 
 
-def animate_faps(stream: FapStream, target: Target, *, head_motion: bool = False, pivot=None) -> Animation:
+def animate_faps(stream: FapStream, target: Target, *, head_motion: bool = False, pivot=None,
+                 parts: FaceParts | None = None) -> Animation:
     """The target animated by ``stream``.
 
-    Feature-point displacements (in the target's FAPU) are spread over the mesh by surface-aware
-    interpolation (:class:`SparseTransfer`); feature points no FAP moves are held still, so the
+    Feature-point displacements (in the target's FAPU) move the head part by part
+    (:class:`~.deform.PartsDeformer`: the jaw turned about its hinge, the rest spread by surface-aware
+    interpolation, rigid teeth, eyeballs turned by FAPs 23-26); feature points no FAP moves are held still, so the
     motion stays where MPEG-4 puts it (other named points of the target are not used here). With
     ``head_motion`` the whole mesh also turns by FAPs 48-50
     about ``pivot`` (default: the centre of the target's feature points).
@@ -87,8 +90,7 @@ def animate_faps(stream: FapStream, target: Target, *, head_motion: bool = False
     displacements = np.concatenate([moving, np.zeros((len(stream), len(still), 3))], axis=1)
     ids = target.ids(controls)
     unique, first = np.unique(ids, return_index=True)  # two names on one vertex: keep the first
-    field = SparseTransfer(target.mesh, unique)(displacements[:, first])
-    positions = target.mesh.vertices + field
+    positions = deform_parts(target, parts, unique, displacements[:, first], stream)
     if head_motion:
         centre = target.mesh.vertices[target.ids(list(target.points))].mean(axis=0) if pivot is None else pivot
         positions = turn_head(positions, head_rotations(stream), centre)

@@ -15,9 +15,11 @@ from ..errors import InputError
 from ..geometry.align import weighted_procrustes
 from ..geometry.animation import Animation
 from ..motion import Motion, relative_head_rotations
+from ..mpeg4.fapstream import FapStream
+from ..parts import FaceParts
 from ..target import Target
 from .decode import turn_head
-from .transfer import SparseTransfer
+from .deform import deform_parts
 
 __all__ = ["animate_motion", "shared_points", "MINIMUM_SHARED_POINTS"]
 
@@ -33,13 +35,17 @@ def shared_points(motion: Motion, target: Target) -> tuple[str, ...]:
 
 
 def animate_motion(motion: Motion, target: Target, *, head_motion: bool = False, pivot=None,
-                   minimum_points: int = MINIMUM_SHARED_POINTS) -> Animation:
+                   minimum_points: int = MINIMUM_SHARED_POINTS, parts: FaceParts | None = None,
+                   gaze: FapStream | None = None) -> Animation:
     """The target moved by ``motion``.
 
     Displacements are carried from the motion's head frame into the target's by the similarity that
     best maps the motion's neutral points onto the target's (rotation and one scale, over all shared
     points, so no single distance's placement error sets the size), then spread over the mesh by
-    surface-aware interpolation (:class:`SparseTransfer`). Frames without a face hold the last face
+    the head part by part (:class:`~.deform.PartsDeformer`: the jaw turned about its hinge with the
+    skin, the residual spread on top by surface-aware interpolation, rigid teeth, lid layers riding
+    on the skin; the eyeballs turned by ``gaze``'s FAPs 23-26 when given). ``parts`` defaults to
+    :func:`~faceanim.parts.face_parts` of the target. Frames without a face hold the last face
     seen (rest before the first). With ``head_motion`` the mesh also turns as the head did, about
     ``pivot`` (default: the centre of the shared points).
 
@@ -58,7 +64,7 @@ def animate_motion(motion: Motion, target: Target, *, head_motion: bool = False,
     source = motion.neutral[motion.index(names)]
     carry = weighted_procrustes(source, target.mesh.vertices[ids])[:3, :3]
     displacements = _held(motion.displacements[:, motion.index(names)], motion.valid) @ carry.T
-    positions = target.mesh.vertices + SparseTransfer(target.mesh, ids)(displacements)
+    positions = deform_parts(target, parts, ids, displacements, gaze)
     if head_motion:
         centre = target.mesh.vertices[ids].mean(axis=0) if pivot is None else pivot
         turn = carry / np.cbrt(np.linalg.det(carry))  # the carry's rotation: the head turns in the target's axes

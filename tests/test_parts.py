@@ -1,0 +1,136 @@
+"""Parts of a head told apart, and moved as parts: rigid teeth, a turning jaw, eyeballs, lid layers."""
+
+import json
+
+import numpy as np
+import pytest
+from conftest import shared
+
+from faceanim.errors import FileFormatError, InputError
+from faceanim.geometry import read_mesh
+from faceanim.mpeg4 import fap_table
+from faceanim.mpeg4.fapstream import FapStream
+from faceanim.parts import face_parts, read_parts_file
+from faceanim.retarget.deform import PartsDeformer, eye_rotations
+
+# ICT-FaceKit's vertex ranges (its README): the upper teeth are its first 16 teeth, the lower the next 16.
+ICT_UPPER_TEETH, ICT_LOWER_TEETH = slice(17039, 19247), slice(19247, 21451)
+ICT_EYES = slice(21451, 23021), slice(23021, 24591)
+ICT_LID_LAYERS = slice(24591, 26719)
+ICT_FACE = slice(0, 9409)
+
+
+@pytest.fixture(scope="module")
+def ict():
+    from faceanim.retarget.placement import auto_target
+
+    target = auto_target(read_mesh(shared("ict_facekit", "obj", "generic_neutral_mesh.obj")))
+    return target, face_parts(target)
+
+
+def rigid_residual(rest, moved):
+    """Worst distance left after the best rigid fit of ``rest`` onto ``moved``."""
+    a, b = rest - rest.mean(axis=0), moved - moved.mean(axis=0)
+    U, _, Vt = np.linalg.svd(a.T @ b)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    return np.linalg.norm(a @ (U @ D @ Vt) - b, axis=1).max()
+
+
+def test_ict_parts_follow_its_own_part_table(ict):
+    _, parts = ict
+    assert (parts.role[ICT_UPPER_TEETH] == 1).all() and (parts.role[ICT_LOWER_TEETH] == 2).all()
+    assert (parts.jaw_weight[ICT_UPPER_TEETH] == 0).all() and (parts.jaw_weight[ICT_LOWER_TEETH] == 1).all()
+    assert parts.mask("eye_left")[ICT_EYES[0]].all() and parts.mask("eye_right")[ICT_EYES[1]].all()
+    assert parts.mask("lid_layer")[ICT_LID_LAYERS].all() and parts.mask("skin")[ICT_FACE].all()
+    # The eyeballs are spheres: their centres are fitted, each behind its own eye, mirrored.
+    left, right = parts.eye_centres
+    assert left[0] > 0 > right[0] and abs(left[0] + right[0]) < 0.05 and abs(left[1] - right[1]) < 0.05
+
+
+def test_ict_jaw_weight_is_full_on_the_chin_and_nothing_above_the_lips(ict):
+    target, parts = ict
+    w = parts.jaw_weight
+    assert w[target.points["2.1"]] > 0.9 and w[target.points["2.3"]] > 0.9  # chin, lower lip middle
+    for still in ("2.2", "9.15", "3.7", "4.1", "10.9", "10.10"):  # upper lip, nose, eye, brow, ears
+        if still in target.points:
+            assert w[target.points[still]] < 0.05, still
+
+
+def test_the_jaw_turns_the_lower_teeth_rigidly_and_controls_land_exactly(ict):
+    target, parts = ict
+    names = [n for n in target.points if not n.startswith("mp")]
+    ids = np.unique(target.ids(names))
+    deformer = PartsDeformer(target, parts, ids)
+    rng = np.random.default_rng(4)
+    displacements = deformer.jaw_turn([0.0, 0.25, 0.4])[:, ids] * parts.jaw_weight[ids][None, :, None]
+    displacements += rng.normal(scale=0.05, size=displacements.shape) * parts.mask("skin")[ids][None, :, None]
+    positions = deformer(displacements, [0.0, 0.25, 0.4], fit_weights=False)
+    rest = target.mesh.vertices
+    on_skin = parts.mask("skin")[ids]
+    np.testing.assert_allclose(positions[:, ids[on_skin]], rest[ids[on_skin]] + displacements[:, on_skin], atol=1e-8)
+    for t in (1, 2):
+        lower, upper = positions[t, ICT_LOWER_TEETH], positions[t, ICT_UPPER_TEETH]
+        assert rigid_residual(rest[ICT_LOWER_TEETH], lower) < 1e-9
+        np.testing.assert_allclose(upper, rest[ICT_UPPER_TEETH], atol=1e-12)
+    chin = target.points["2.1"]
+    incisors = np.flatnonzero(parts.mask("lower_teeth"))
+    front = incisors[np.argsort(-rest[incisors, 2])[:50]]
+    ratio = np.linalg.norm(positions[2, front] - rest[front], axis=1).mean() / np.linalg.norm(
+        positions[2, chin] - rest[chin])
+    assert 0.5 < ratio < 1.2
+
+
+def test_eyeballs_turn_about_their_centres_with_the_gaze_faps(ict):
+    target, parts = ict
+    table = fap_table()
+    values = np.zeros((2, 68))
+    mask = np.zeros((2, 68), dtype=bool)
+    for name in ("yaw_l_eyeball", "yaw_r_eyeball"):
+        values[1, table.number(name) - 1] = 20000  # 0.2 rad towards the face's left
+        mask[:, table.number(name) - 1] = True
+    eyes = eye_rotations(FapStream(values, mask, 25.0), parts)
+    ids = np.unique(target.ids([n for n in target.points if not n.startswith("mp")]))
+    positions = PartsDeformer(target, parts, ids)(np.zeros((2, len(ids), 3)), [0.0, 0.0], eyes)
+    rest = target.mesh.vertices
+    for k, side in enumerate(("eye_left", "eye_right")):
+        ball = parts.mask(side)
+        centre = parts.eye_centres[k]
+        np.testing.assert_allclose(np.linalg.norm(positions[1, ball] - centre, axis=1),
+                                   np.linalg.norm(rest[ball] - centre, axis=1), atol=1e-9)
+        front = np.flatnonzero(ball)[np.argmax(rest[ball, 2])]
+        assert positions[1, front, 0] - rest[front, 0] > 0.1  # the pupil moves to the face's left
+    np.testing.assert_allclose(positions[0], rest, atol=1e-12)
+
+
+def test_a_mesh_without_face_points_is_all_skin_and_no_jaw():
+    from conftest import grid_mesh
+
+    from faceanim.target import Target
+
+    mesh = grid_mesh(5)
+    parts = face_parts(Target(mesh, {"2.1": 3}, None))
+    assert parts.mask("skin").all() and not parts.jaw_weight.any()
+
+
+def test_parts_file_errors(tmp_path, ict):
+    target, _ = ict
+    bad = tmp_path / "p.json"
+    bad.write_text(json.dumps({"teeth": ["M_Teeth"], "hair": ["M_Hair"]}))
+    with pytest.raises(FileFormatError, match="unknown role 'hair'"):
+        read_parts_file(bad)
+    bad.write_text(json.dumps({"teeth": [[1, "x"]]}))
+    with pytest.raises(FileFormatError, match="must be a list of part names"):
+        read_parts_file(bad)
+    bad.write_text("{")
+    with pytest.raises(FileFormatError, match="is not valid JSON"):
+        read_parts_file(bad)
+    with pytest.raises(InputError, match="names part 'M_Hat', which the mesh lacks"):
+        face_parts(target, labels={"static": ["M_Hat"]})
+    with pytest.raises(InputError, match=r"range \[0, 99999999\] is outside"):
+        face_parts(target, labels={"static": [[0, 99999999]]})
+
+
+def test_labels_override_what_geometry_finds(ict):
+    target, _ = ict
+    parts = face_parts(target, labels={"lower_teeth": [[ICT_UPPER_TEETH.start, ICT_UPPER_TEETH.stop - 1]]})
+    assert (parts.role[ICT_UPPER_TEETH] == 2).all() and (parts.jaw_weight[ICT_UPPER_TEETH] == 1).all()
