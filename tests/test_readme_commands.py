@@ -28,13 +28,9 @@ OUTPUT_OPTIONS = ("-o", "--output", "--preview", "--fap", "--overlay", "--csv", 
 DEMO_OUTPUTS = ("report.html", "demo.glb", "preview.mp4", "demo.fap", "performance.mp4")
 COMMAND_SECONDS = 600  # the longest any one command may run (the slowest takes about 30 s on 2 cores)
 SERVE_SECONDS = 60  # for faceanim view to print its address, and then to answer
-# README commands known to fail, as written in the README, with why. Strict: once a command passes,
-# its entry must go.
-KNOWN_FAILURES = {
-    "faceanim express --emotion joy --target face.glb -o joy.obj":
-        "a .glb read back loses its part labels, so the avatar's eyes and teeth hold no control vertex "
-        "(issue 14; being fixed in export/gltf.py)",
-}
+# README commands known to fail, as written in the README, with why (a strict xfail: once a command
+# passes, its entry must go). Empty since the part labels travel in the .glb (express --target face.glb).
+KNOWN_FAILURES: dict[str, str] = {}
 
 
 def readme_commands(text: str) -> list[list[str]]:
