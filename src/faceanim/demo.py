@@ -71,8 +71,10 @@ class DemoResult:
 
 
 def run_demo(folder, *, progress=None) -> DemoResult:
-    """Run the demo into ``folder`` (created if missing). Returns what it wrote and measured."""
+    """Run the demo into ``folder`` (created if missing). Returns what it wrote and measured.
+    ``progress``, a :class:`~faceanim.progress.Progress`, shows each step as it runs (quiet when None)."""
     from . import pipeline, portrait
+    from .progress import as_progress
     from .render.video import video_writer
 
     folder = Path(folder)
@@ -81,6 +83,8 @@ def run_demo(folder, *, progress=None) -> DemoResult:
     folder.mkdir(parents=True, exist_ok=True)
     result = DemoResult(folder, {name: folder / name for name in
                                  ("demo.glb", "preview.mp4", "demo.fap", "performance.mp4", "report.html")})
+    shown = as_progress(progress)
+    shown.status("making the avatar of the astronaut portrait")
     with _timed(result.steps, "the avatar: astronaut portrait tracked, face mesh built and textured"):
         image = face_crop(*portrait.portrait())
         landmarks = portrait.portrait_landmarks(image, "the embedded portrait")
@@ -88,7 +92,7 @@ def run_demo(folder, *, progress=None) -> DemoResult:
     with _timed(result.steps, "the performance: scripted FAPs decoded on the avatar, the photo warped along "
                               "them (Arad's RBF)"):
         script = scripted_stream()
-        frames = performance_frames(image, landmarks, target, script)
+        frames = performance_frames(image, landmarks, target, script, progress=shown)
         with video_writer(result.outputs["performance.mp4"], FPS, image.shape[1], image.shape[0]) as write:
             for frame in frames:
                 write(frame)
@@ -96,7 +100,7 @@ def run_demo(folder, *, progress=None) -> DemoResult:
                               "followed by the avatar, glTF, preview video"):
         animation, recovered = pipeline.animate(
             result.outputs["performance.mp4"], result.outputs["demo.glb"], target=target,
-            preview=result.outputs["preview.mp4"], fap=result.outputs["demo.fap"], progress=progress)
+            preview=result.outputs["preview.mp4"], fap=result.outputs["demo.fap"], progress=shown)
     result.recovery = fap_recovery(script, recovered)
     stills = _stills(result.outputs["preview.mp4"], apex_frames())
     _write_report(result, stills, frames=len(animation), vertices=len(target.mesh.vertices))
@@ -118,13 +122,16 @@ def face_crop(image: np.ndarray, name: str, *, size: int = 480) -> np.ndarray:
     return np.asarray(crop.resize((size, size), Image.LANCZOS))
 
 
-def performance_frames(image: np.ndarray, landmarks: np.ndarray, target, stream) -> list[np.ndarray]:
-    """The portrait warped frame by frame as ``stream`` moves the avatar's tracker points.
+def performance_frames(image: np.ndarray, landmarks: np.ndarray, target, stream, *,
+                       progress=None) -> list[np.ndarray]:
+    """The portrait warped frame by frame as ``stream`` moves the avatar's tracker points (shown on
+    ``progress``, a :class:`~faceanim.progress.Progress`, when given).
 
     The avatar's points move in 3D (centimetres, head frame); a weak-perspective camera fitted to where
     the same points sit in the photo carries their motion into pixels.
     """
     from .geometry.imagewarp import ImageWarp
+    from .progress import as_progress
     from .retarget.decode import animate_faps
 
     height, width = image.shape[:2]
@@ -137,7 +144,7 @@ def performance_frames(image: np.ndarray, landmarks: np.ndarray, target, stream)
     angles = np.linspace(0, 2 * np.pi, 32, endpoint=False)
     ring = centre + np.column_stack([np.cos(angles), np.sin(angles)]) * radius * [1.3, 1.45]
     warp = ImageWarp(pixels, width, height, fixed=ring)
-    return [warp(image, d) for d in moved]
+    return [warp(image, d) for d in as_progress(progress).bar(moved, total=len(moved), desc="filming the performance")]
 
 
 def fap_recovery(script, recovered) -> list[tuple[str, str, float, float]]:

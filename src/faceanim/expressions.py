@@ -108,7 +108,7 @@ def _generic_carrier(target):
     return MuscleFace(source), DenseTransfer(source.mesh, target.mesh, pairs)
 
 
-def _target_fields(target, recipe, frames, route):
+def _target_fields(target, recipe, frames, route, progress):
     """``(T, V, 3)`` displacement of the target per frame (T = 1 for a still), the recipe made at the
     apex (after the exaggeration guard, which warns once there), and the target as a muscle face."""
     from .synth import MuscleFace
@@ -123,22 +123,25 @@ def _target_fields(target, recipe, frames, route):
     if frames is None:
         fields = [apex]
     else:  # every frame made, not blended, so the jaw and lids turn on arcs
-        fields = [synthesise(face, {k: v * w for k, v in made.items()})[0] for w in envelope(frames)]
+        fields = [synthesise(face, {k: v * w for k, v in made.items()})[0]
+                  for w in progress.bar(envelope(frames), total=frames, desc="making the expression")]
     if carry is not None:
         fields = [carry(field) for field in fields]
     return np.stack(fields), made, target_face
 
 
 def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, points=None, fdp=None,
-            frames=None, fps: float = 25.0, route: str = "direct", target=None):
+            frames=None, fps: float = 25.0, route: str = "direct", target=None, progress=None):
     """``faceanim express``: an AU recipe or an emotion on a target face, written as ``.obj`` (the
     still face), ``.glb`` (still, or onset-apex-offset over ``frames``; with every AU as a named morph
-    target) or ``.fap``. Returns ``(fields (T, V, 3), recipe made)``."""
+    target) or ``.fap``. ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps
+    (quiet when None). Returns ``(fields (T, V, 3), recipe made)``."""
     from .export import MorphSet, morphs_from_animation, write_glb
     from .geometry import write_mesh
     from .geometry.animation import Animation
     from .inputs import load_target
     from .mpeg4.fapfile import write_fap
+    from .progress import as_progress
     from .synth.expression import au_fields
 
     output = Path(output)
@@ -155,8 +158,9 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
     if frames is not None and output.suffix.lower() == ".obj":
         raise InputError(f"{output}: an OBJ holds one still face; write .glb or .fap for --frames")
     recipe = expression_recipe(au=au, emotion=emotion, intensity=intensity)
-    target = target or load_target(target_mesh, points=points, fdp=fdp)
-    fields, made, face = _target_fields(target, recipe, None if frames is None else int(frames), route)
+    shown = as_progress(progress)
+    target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
+    fields, made, face = _target_fields(target, recipe, None if frames is None else int(frames), route, shown)
     suffix = output.suffix.lower()
     if suffix == ".obj":
         write_mesh(output, target.mesh.with_vertices(target.mesh.vertices + fields[0]))
@@ -167,6 +171,7 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
         write_fap(output, stream)
     else:
         codes = slider_codes()
+        shown.status(f"writing {output} with {len(codes)} AU sliders as morph targets")
         sliders = au_fields(face, codes)
         if frames is None:
             morphs = MorphSet(np.concatenate([fields, sliders]), ("expression", *(f"AU{c}" for c in codes)),

@@ -13,12 +13,14 @@ from .geometry import read_mesh
 __all__ = ["load_target", "capture_motion", "motion_of_track"]
 
 
-def load_target(mesh_path=None, *, points=None, fdp=None):
+def load_target(mesh_path=None, *, points=None, fdp=None, progress=None):
     """A Target from a mesh file and its control points, taken from, in order: a JSON file, an Xface
     ``.fdp``, the points a faceanim ``.glb`` carries, automatic placement (render, track, cast back).
-    With no mesh, the avatar of the embedded portrait (see :func:`avatar_target`)."""
+    With no mesh, the avatar of the embedded portrait (see :func:`avatar_target`). ``progress``
+    (a :class:`~faceanim.progress.Progress`) is told of the avatar or the placement."""
     from .geometry.meshio import glb_extras
     from .portrait import avatar_target
+    from .progress import as_progress
     from .retarget.placement import auto_target
     from .target import Target, target_from_fdp, target_from_json
 
@@ -27,6 +29,7 @@ def load_target(mesh_path=None, *, points=None, fdp=None):
     if mesh_path is None:
         if points is not None or fdp is not None:
             raise InputError("--points and --fdp describe a --target mesh; give the mesh too")
+        as_progress(progress).status("making the avatar of the embedded portrait (no --target given)")
         return avatar_target()
     mesh = read_mesh(mesh_path)
     if points is not None:
@@ -36,6 +39,7 @@ def load_target(mesh_path=None, *, points=None, fdp=None):
     carried = glb_extras(mesh_path).get("points")
     if isinstance(carried, dict):
         return Target.from_points(mesh, carried, source=str(mesh_path))
+    as_progress(progress).status(f"placing control points on {Path(mesh_path).name} (rendered, tracked, cast back)")
     return auto_target(mesh)
 
 
@@ -43,9 +47,10 @@ def capture_motion(source, *, neutral=None, smoothing=True, progress=None):
     """The Motion of a video (or of a saved ``.npz`` track). ``neutral``: ``FRAME``, ``START:END`` or
     an image of the same face at rest; found automatically when None."""
     from .capture.track import Track, track_video
+    from .progress import as_progress
 
     source = Path(source)
-    recorded = Track.load(source) if source.suffix == ".npz" else track_video(source, progress=progress)
+    recorded = Track.load(source) if source.suffix == ".npz" else track_video(source, progress=as_progress(progress))
     gaps = recorded.gaps()
     if gaps:
         frames = sum(b - a + 1 for a, b in gaps)

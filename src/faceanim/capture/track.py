@@ -113,24 +113,25 @@ def fill_gaps(track: Track, max_gap: float = 0.2) -> Track:
 
 
 def track_video(path, *, options: TrackerOptions | None = None, max_gap: float = 0.2,
-                progress: bool | None = None, model=None) -> Track:
+                progress=None, model=None) -> Track:
     """Track the face through a video, an image or an image folder; with ``model`` (a
     ``face_landmarker.task`` file) through MediaPipe's Tasks API, which adds 52 blendshape scores.
+    ``progress``: a :class:`~faceanim.progress.Progress` or a bool; None shows a bar when stderr is
+    a terminal.
 
     Raises
     ------
     InputError
         The file cannot be read as video, or no frame has a face.
     """
-    from tqdm import tqdm
+    from ..progress import Progress, as_progress
 
     options = options or TrackerOptions()
-    show = sys.stderr.isatty() if progress is None else progress
+    shown = Progress() if progress is None and sys.stderr.isatty() else as_progress(progress)
     frames, valid, times, shapes = [], [], [], []
     names = ()
     with open_frames(path) as source, open_tracker(options, model) as tracker:
-        for index, (time, rgb) in enumerate(tqdm(source, total=source.frame_count, disable=not show,
-                                                 unit="frame", desc="tracking")):
+        for index, (time, rgb) in enumerate(shown.bar(source, total=source.frame_count, desc="tracking")):
             time = time if time is not None else index / source.fps
             face = tracker(rgb, time)
             valid.append(face is not None)

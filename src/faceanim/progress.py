@@ -1,0 +1,91 @@
+"""Long work shown as it runs: the command line makes a :class:`Progress` when stderr is a terminal
+(as git does) and hands it to the jobs, which show each long step through it; a job given none
+stays quiet.
+
+A per-frame loop gets a tqdm bar when the stream is a terminal, else one line saying what runs and
+for how many frames (so a log gets one line, not a bar redrawn 200 times); a single long step gets
+one line. Everything goes to stderr, so stdout keeps only what a command reports at its end.
+
+>>> import io
+>>> shown = io.StringIO()
+>>> progress = Progress(shown)
+>>> progress.status("placing control points on head.obj")
+>>> sum(progress.bar(range(3), total=3, desc="rendering the preview"))
+3
+>>> print(shown.getvalue(), end="")
+faceanim: placing control points on head.obj...
+faceanim: rendering the preview (3 frames)...
+>>> sum(as_progress(None).bar(range(3), total=3, desc="quiet"))
+3
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterable
+
+__all__ = ["Progress", "QUIET", "as_progress"]
+
+
+class Progress:
+    """Shows long steps on ``stream`` (default: the ``sys.stderr`` of the moment).
+
+    Parameters
+    ----------
+    stream : text file, optional
+        Where to write.
+    bars : bool, optional
+        Draw tqdm bars for per-frame loops; by default only when ``stream`` is a terminal.
+    """
+
+    def __init__(self, stream=None, *, bars: bool | None = None):
+        self._stream = stream
+        self._bars = bars
+
+    @property
+    def stream(self):
+        return sys.stderr if self._stream is None else self._stream
+
+    def status(self, what: str) -> None:
+        """One line, ``faceanim: <what>...``, before a single step that takes a while."""
+        print(f"faceanim: {what}...", file=self.stream, flush=True)
+
+    def bar(self, iterable: Iterable, *, total: int | None = None, desc: str, unit: str = "frame") -> Iterable:
+        """``iterable``, shown as it is consumed: a bar counting ``total`` of ``unit``, or one status line."""
+        bars = self._bars
+        if bars is None:
+            bars = bool(getattr(self.stream, "isatty", lambda: False)())
+        if bars:
+            try:
+                from tqdm import tqdm
+            except ImportError:  # tqdm comes with the capture extra; without it, a line will do
+                pass
+            else:
+                return tqdm(iterable, total=total, desc=desc, unit=unit, file=self.stream)
+        self.status(f"{desc} ({total} {unit}s)" if total else desc)
+        return iterable
+
+
+class _Quiet(Progress):
+    """Shows nothing: what a job uses when it is given no :class:`Progress`."""
+
+    def status(self, what: str) -> None:
+        pass
+
+    def bar(self, iterable: Iterable, *, total: int | None = None, desc: str, unit: str = "frame") -> Iterable:
+        return iterable
+
+
+QUIET = _Quiet()
+
+
+def as_progress(progress) -> Progress:
+    """The :class:`Progress` a job was given: itself, or ``True`` for one on stderr; ``None`` or
+    ``False``: :data:`QUIET`."""
+    if isinstance(progress, Progress):
+        return progress
+    if progress is None or progress is False:
+        return QUIET
+    if progress is True:
+        return Progress()
+    raise TypeError(f"progress must be a Progress, True, False or None, got {type(progress).__name__}")
