@@ -7,7 +7,7 @@ import pytest
 from conftest import shared
 
 from faceanim.capture.headframe import restabilise
-from faceanim.capture.jaw import correct_jaw_depth, jaw_carried
+from faceanim.capture.jaw import _carried_share, correct_jaw_depth, jaw_carried
 from faceanim.capture.landmarks import FEATURE_POINT_LANDMARK, IBUG68_LANDMARK
 from faceanim.capture.metric import canonical_face, metric_geometry
 from faceanim.capture.neutral import parse_neutral, relaxed_window
@@ -102,10 +102,12 @@ def test_jaw_depth_follows_the_chins_drop():
     assert 152 in chin and 17 in carried and 17 not in chin  # the chin; the lower lip rides on the jaw too
     assert 13 not in carried and 1 not in carried            # not the upper lip, not the nose
     arm = rest - hinge
+    share = _carried_share(np.asarray(rest))  # the jaw's share fades out beside and above what it carries
+    assert (share[carried] > 0).all() and (share[chin] == 1).all() and share[13] == 0 and share[1] == 0
     turn = np.array([0.0, 0.05, 0.1, np.nan])  # radians; the last frame has no face
     opened = np.zeros((4, 468, 3))
-    opened[:, carried, 1] = -turn[:, None] * arm[carried, 2]
-    opened[:, carried, 2] = turn[:, None] * arm[carried, 1]
+    opened[:, :, 1] = -turn[:, None] * arm[:, 2] * share
+    opened[:, :, 2] = turn[:, None] * arm[:, 1] * share
     seen = opened.copy()
     seen[..., 2] *= 1 / 3
     smile = np.zeros((468, 3))
