@@ -368,7 +368,8 @@ def _split_teeth(mesh: Mesh, role: np.ndarray, kind: np.ndarray, jaw: np.ndarray
         return
     pieces = [mouth[part[mouth] == k] for k in np.unique(part[mouth])]
     centres = np.array([frame.local(mesh.vertices[p].mean(axis=0)[None])[0] for p in pieces])
-    if len(pieces) >= 2 and np.ptp(centres[:, 1]) > 0.1 * frame.mouth_width:
+    split = len(pieces) >= 2 and np.ptp(centres[:, 1]) > 0.1 * frame.mouth_width
+    if split:
         frame.bite = _bite_line(centres[:, 2], centres[:, 1])
     band = 0.1 * frame.mouth_width
     for piece, centre in zip(pieces, centres, strict=True):
@@ -378,6 +379,10 @@ def _split_teeth(mesh: Mesh, role: np.ndarray, kind: np.ndarray, jaw: np.ndarray
             weight = frame.below_bite(mesh.vertices[piece])  # gums and tongue in one piece
             jaw[piece] = weight
             role[piece] = np.where(weight >= 0.5, _ROLE["lower_teeth"], _ROLE["upper_teeth"])
+        elif not split:  # one set of teeth alone: upper if it reaches above the lips' meeting (the skull holds it)
+            lower = local[:, 1].max() < frame.bite[0]
+            role[piece] = _ROLE["lower_teeth" if lower else "upper_teeth"]
+            jaw[piece] = float(lower)
         else:
             lower = centre[1] < frame.bite[0] + frame.bite[1] * centre[2]
             role[piece] = _ROLE["lower_teeth" if lower else "upper_teeth"]
@@ -428,7 +433,9 @@ def _skin_jaw_weight(mesh: Mesh, skin: np.ndarray, frame: _Frame, target: Target
     above = y - (mouth[1] + (hinge[1] - mouth[1]) * back)
     # Beside the mouth the jaw's full share starts a band below that line; on the lower lip, at it.
     s = np.clip(np.abs(x - mouth[0]) / (0.5 * w), 0.0, 1.0)
-    band = 0.3 * w * s * s * (3 - 2 * s)
+    # In the middle the lips themselves are pinned (below); the jaw's full share starts under the lower lip.
+    lip_bottom = frame.local_points["8.2"][1] if "8.2" in frame.local_points else mouth[1] - 0.1 * w
+    band = np.maximum(0.3 * w * s * s * (3 - 2 * s), mouth[1] - lip_bottom)
     fixed = np.full(len(ids), np.nan)
     fixed[(above < -band) & (under_jaw < -0.05 * w) & (z > hinge[2] + 0.25 * depth)] = 1.0
     inside = (z < mouth[2] - 0.15 * w) & (np.abs(x - mouth[0]) < 0.6 * w) & (y > chin[1]) & (y < mouth[1] + 0.5 * w)
