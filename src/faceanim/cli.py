@@ -149,6 +149,11 @@ def main(argv=None) -> int:
     """Run the command line; returns the exit status."""
     args = _parser().parse_args(argv)
     from . import pipeline
+    from .progress import QUIET, Progress
+
+    # Long steps shown on stderr when it is a terminal (as git does): a bar per frame loop, a line per step;
+    # off a terminal (a pipe, a log, a test), only the result and the errors.
+    progress = Progress() if sys.stderr.isatty() else QUIET
 
     warnings.formatwarning = lambda message, *_, **__: f"faceanim: warning: {message}\n"
 
@@ -162,19 +167,20 @@ def main(argv=None) -> int:
             from .capture.tracker import TrackerOptions
 
             result = pipeline.track(args.video, args.output, overlay=args.overlay, csv=args.csv,
-                                    options=TrackerOptions(start_face=args.start_face), model=args.model)
+                                    options=TrackerOptions(start_face=args.start_face), model=args.model,
+                                    progress=progress)
             print(f"wrote {args.output}: {len(result)} frames, face found in {int(result.valid.sum())}, "
                   f"filled {int(result.filled.sum())}")
         elif args.command == "encode":
             stream, clipped = pipeline.encode(args.source, args.output, neutral=args.neutral,
-                                              smoothing=not args.no_filter)
+                                              smoothing=not args.no_filter, progress=progress)
             active = int(stream.mask.any(axis=0).sum())
             note = f"; {clipped} values clipped to their MPEG-4 range" if clipped else ""
             print(f"wrote {args.output}: {len(stream)} frames, {active} FAPs{note}")
         elif args.command == "decode":
             animation = pipeline.decode(args.source, args.output, target_mesh=args.target, points=args.points,
                                         fdp=args.fdp, preview=args.preview, head_motion=args.head_motion,
-                                        obj_sequence=args.obj_sequence, csv=args.csv)
+                                        obj_sequence=args.obj_sequence, csv=args.csv, progress=progress)
             print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
                                                                        else ""))
         elif args.command == "animate":
@@ -182,7 +188,7 @@ def main(argv=None) -> int:
                                             fdp=args.fdp, preview=args.preview, fap=args.fap,
                                             head_motion=args.head_motion, obj_sequence=args.obj_sequence,
                                             csv=args.csv, via=args.via, neutral=args.neutral,
-                                            smoothing=not args.no_filter)
+                                            smoothing=not args.no_filter, progress=progress)
             print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
                                                                        else ""))
         elif args.command == "avatar":
@@ -191,7 +197,7 @@ def main(argv=None) -> int:
         elif args.command == "demo":
             from .demo import run_demo, view_command
 
-            result = run_demo(args.output)
+            result = run_demo(args.output, progress=progress)
             total = sum(seconds for _, seconds in result.steps)
             for what, seconds in result.steps:
                 print(f"{seconds:6.1f} s  {what}")
@@ -215,12 +221,13 @@ def main(argv=None) -> int:
         elif args.command == "express":
             fields, made = pipeline.express(args.output, au=args.au, emotion=args.emotion, intensity=args.intensity,
                                             target_mesh=args.target, points=args.points, fdp=args.fdp,
-                                            frames=args.frames, fps=args.fps, route=args.route)
+                                            frames=args.frames, fps=args.fps, route=args.route, progress=progress)
             from .synth.facs import recipe_text
 
             print(f"wrote {args.output}: AUs {recipe_text(made)}" + (f", {len(fields)} frames" if args.frames else ""))
         elif args.command == "aus":
-            numbers, values = pipeline.aus(args.video, args.output, neutral=args.neutral, smoothing=not args.no_filter)
+            numbers, values = pipeline.aus(args.video, args.output, neutral=args.neutral, smoothing=not args.no_filter,
+                                           progress=progress)
             print(f"wrote {args.output}: {len(values)} frames, {len(numbers)} action units")
         elif args.command == "fap-info":
             print(pipeline.fap_info(args.fap))

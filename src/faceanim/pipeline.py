@@ -101,17 +101,19 @@ def track(video, output, *, overlay=None, csv=None, options=None, progress=None,
     from .capture.overlay import overlay_frames
     from .capture.track import track_video
     from .capture.tracker import TrackerOptions
+    from .progress import as_progress
     from .render.video import video_writer
 
     output = Path(output)
     if output.suffix != ".npz":
         raise InputError(f"{output}: a track is written as .npz")
-    result = track_video(video, options=options or TrackerOptions(), progress=progress, model=model)
+    shown = as_progress(progress)
+    result = track_video(video, options=options or TrackerOptions(), progress=shown, model=model)
     result.save(output)
     if overlay is not None:
         _, pose = head_frame(result)
         with video_writer(overlay, result.fps, result.width, result.height) as write:
-            for frame in overlay_frames(result, pose):
+            for frame in shown.bar(overlay_frames(result, pose), total=len(result), desc="drawing the overlay"):
                 write(frame)
     if csv is not None:
         _write_landmark_csv(result, csv)
@@ -212,12 +214,13 @@ def _check_extra_outputs(obj_sequence, csv) -> None:
         check_sequence_folder(obj_sequence)
 
 
-def _write_extra_outputs(animation, stream, obj_sequence, csv) -> None:
+def _write_extra_outputs(animation, stream, obj_sequence, csv, progress) -> None:
     from .export import write_fap_csv, write_obj_sequence
 
     if csv is not None:
         write_fap_csv(csv, stream)
     if obj_sequence is not None:
+        progress.status(f"writing {len(animation)} OBJ files into {obj_sequence}")
         write_obj_sequence(obj_sequence, animation)
 
 
@@ -242,7 +245,7 @@ def _letterbox(image: np.ndarray, size: int) -> np.ndarray:
     return canvas
 
 
-def _preview(path, animation, target, *, source_frames=None, size: int = 480) -> None:
+def _preview(path, animation, target, progress, *, source_frames=None, size: int = 480) -> None:
     """Render the animated target (textured when it has a texture), beside the source frames if given."""
     from .render.camera import front_camera
     from .render.rasterizer import Renderer
@@ -254,7 +257,7 @@ def _preview(path, animation, target, *, source_frames=None, size: int = 480) ->
     width = size * (2 if source_frames is not None else 1)
     source = iter(source_frames) if source_frames is not None else None
     with Renderer(size, size) as renderer, video_writer(path, animation.fps, width, size) as write:
-        for positions in animation.positions:
+        for positions in progress.bar(animation.positions, total=len(animation), desc="rendering the preview"):
             frame = renderer.render(animation.mesh, camera, positions=positions, mode=mode)
             if source is not None:
                 left = next(source, None)
@@ -264,21 +267,26 @@ def _preview(path, animation, target, *, source_frames=None, size: int = 480) ->
 
 
 def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview=None, head_motion=False,
-           target=None, obj_sequence=None, csv=None):
+           target=None, obj_sequence=None, csv=None, progress=None):
     """``faceanim decode``: a ``.fap`` file onto a target mesh, written as an animated ``.glb``.
-    ``target``, a ready :class:`~faceanim.target.Target`, stands in for the mesh and its points."""
+    ``target``, a ready :class:`~faceanim.target.Target`, stands in for the mesh and its points;
+    ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None)."""
     from .mpeg4.fapfile import read_fap
+    from .progress import as_progress
     from .retarget.decode import animate_faps
 
     output = _check_output(output)
     _check_extra_outputs(obj_sequence, csv)
+    shown = as_progress(progress)
     stream = read_fap(fap_path)
-    target = target or load_target(target_mesh, points=points, fdp=fdp)
+    target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
+    shown.status(f"playing {len(stream)} frames of FAPs on the target ({len(target.mesh.vertices):,} vertices)")
     animation = animate_faps(stream, target, head_motion=head_motion)
+    shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
     _write_glb(output, animation, target)
-    _write_extra_outputs(animation, stream, obj_sequence, csv)
+    _write_extra_outputs(animation, stream, obj_sequence, csv, shown)
     if preview is not None:
-        _preview(preview, animation, target)
+        _preview(preview, animation, target, shown)
     return animation
 
 
@@ -290,13 +298,15 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
 
     ``via="motion"`` follows the tracked Motion directly (every point the target shares, in 3D);
     a target sharing too few points (a JSON file of other names) falls back to the FAPs, with a
-    warning. ``via="faps"`` plays the FAP stream, as ``decode`` would play the ``.fap`` file."""
+    warning. ``via="faps"`` plays the FAP stream, as ``decode`` would play the ``.fap`` file.
+    ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None)."""
     from .capture.headframe import head_frame
     from .capture.neutral import parse_neutral
     from .capture.overlay import overlay_frames
     from .capture.track import track_video
     from .motion import clip_to_range, motion_to_faps
     from .mpeg4.fapfile import write_fap
+    from .progress import as_progress
     from .retarget.decode import animate_faps
     from .retarget.follow import MINIMUM_SHARED_POINTS, animate_motion, shared_points
 
@@ -306,25 +316,29 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     _check_extra_outputs(obj_sequence, csv)
     if neutral is not None and not isinstance(parse_neutral(str(neutral), 2**62), tuple):
         raise InputError("animate takes the neutral as FRAME or START:END")  # said before any work is done
-    target = target or load_target(target_mesh, points=points, fdp=fdp)
-    recorded = track_video(video, progress=progress)
+    shown = as_progress(progress)
+    target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
+    recorded = track_video(video, progress=shown)
     motion = motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
     if via == "motion" and len(shared_points(motion, target)) < MINIMUM_SHARED_POINTS:
         warnings.warn(f"the target shares only {len(shared_points(motion, target))} control points with the tracker; "
              "it is driven through the FAPs instead", stacklevel=2)
         via = "faps"
+    shown.status(f"{'following the tracked motion' if via == 'motion' else 'playing the FAPs'} on the target "
+                 f"({len(target.mesh.vertices):,} vertices)")
     if via == "motion":
-        animation = animate_motion(motion, target, head_motion=head_motion)
+        animation = animate_motion(motion, target, head_motion=head_motion, gaze=stream)
     else:
         animation = animate_faps(stream, target, head_motion=head_motion)
+    shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
     _write_glb(output, animation, target)
-    _write_extra_outputs(animation, stream, obj_sequence, csv)
+    _write_extra_outputs(animation, stream, obj_sequence, csv, shown)
     if fap is not None:
         write_fap(fap, stream)
     if preview is not None:
         _, pose = head_frame(recorded)
-        _preview(preview, animation, target, source_frames=overlay_frames(recorded, pose))
+        _preview(preview, animation, target, shown, source_frames=overlay_frames(recorded, pose))
     return animation, stream
 
 

@@ -1,0 +1,54 @@
+"""Long work shown on stderr (faceanim.progress), and the jobs that show it only when asked."""
+
+import io
+import sys
+
+import pytest
+
+from faceanim import pipeline
+from faceanim.cli import main
+from faceanim.progress import QUIET, Progress, as_progress
+
+
+def test_a_step_is_one_line():
+    shown = io.StringIO()
+    Progress(shown).status("placing control points on head.obj")
+    assert shown.getvalue() == "faceanim: placing control points on head.obj...\n"
+
+
+def test_a_loop_off_a_terminal_is_one_line_and_yields_everything_in_order():
+    shown = io.StringIO()  # not a terminal
+    assert list(Progress(shown).bar(iter("abc"), total=3, desc="rendering the preview")) == ["a", "b", "c"]
+    assert shown.getvalue() == "faceanim: rendering the preview (3 frames)...\n"
+    shown = io.StringIO()
+    assert list(Progress(shown).bar(iter("ab"), desc="tracking")) == ["a", "b"]  # a video that states no length
+    assert shown.getvalue() == "faceanim: tracking...\n"
+
+
+def test_a_loop_gets_a_bar_when_asked():
+    shown = io.StringIO()
+    assert list(Progress(shown, bars=True).bar(range(5), total=5, desc="tracking")) == list(range(5))
+    assert "tracking" in shown.getvalue() and "5/5" in shown.getvalue()
+
+
+def test_quiet_unless_given_a_progress():
+    assert as_progress(None) is QUIET and as_progress(False) is QUIET
+    assert type(as_progress(True)) is Progress
+    shown = Progress(io.StringIO())
+    assert as_progress(shown) is shown
+    assert list(QUIET.bar(range(3), total=3, desc="x")) == [0, 1, 2]
+    with pytest.raises(TypeError, match="progress must be a Progress, True, False or None, got str"):
+        as_progress("yes")
+
+
+def test_the_command_shows_each_long_step_on_a_terminal_only(tmp_path, capsys, monkeypatch):
+    assert main(["express", "--au", "12:1.0", "--frames", "3", "-o", str(tmp_path / "a.glb")]) == 0
+    assert capsys.readouterr().err == ""  # off a terminal: only the result (on stdout) and errors
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    assert main(["express", "--au", "12:1.0", "--frames", "3", "-o", str(tmp_path / "b.glb")]) == 0
+    err = capsys.readouterr().err
+    assert "faceanim: making the avatar of the embedded portrait" in err
+    assert "making the expression" in err and "3/3" in err  # a bar
+    assert f"faceanim: writing {tmp_path / 'b.glb'} with" in err
+    pipeline.express(tmp_path / "c.glb", au="12:1.0", frames=3)  # the library job stays quiet
+    assert capsys.readouterr().err == ""
