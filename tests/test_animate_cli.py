@@ -64,7 +64,8 @@ def test_animate_takes_its_neutral_and_filter_from_the_command_line(tmp_path, ca
     """--neutral 20:30 makes frames 20-29 the rest: the avatar averaged over them is its rest mesh (to
     the second order of the jaw's small turns there; the eyeballs, which turn with the tracked gaze,
     are left out). The command's --no-filter gives what the pipeline gives unfiltered (to the .glb's
-    morph-target precision), not what it gives filtered. An image as animate's neutral is one line on stderr, with nothing written."""
+    morph-target precision), not what it gives filtered. An image as animate's neutral is one line on
+    stderr, with nothing written."""
     from faceanim import pipeline
     from faceanim.inputs import load_target
     from faceanim.parts import face_parts

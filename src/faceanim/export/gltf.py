@@ -99,8 +99,9 @@ def morphs_from_animation(animation: Animation, *, max_modes: int = 64, toleranc
     frames, evaluated exactly for each candidate: ``k`` modes keep it within ``tolerance`` times the
     mesh's size (the largest side of its bounding box) and, unless ``k`` is 1, ``k - 1`` do not; or
     ``k = max_modes`` when even that many do not. (The error need not fall at every added mode, so
-    a smaller count passing may exist below a failing one; bisection does not look there.) Each mode is written as up to two targets, its positive part and its
-    negated negative part (``shape03+``, ``shape03-``), with weights ``max(w, 0)`` and ``max(-w, 0)``
+    a smaller count passing may exist below a failing one; bisection does not look there.) Each mode
+    is written as up to two targets, its positive part and its negated negative part (``shape03+``,
+    ``shape03-``), with weights ``max(w, 0)`` and ``max(-w, 0)``
     scaled to peak at 1; a mode whose weights never change sign gives one.
 
     Returns

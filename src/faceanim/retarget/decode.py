@@ -8,9 +8,9 @@ from ..geometry.animation import Animation
 from ..mpeg4 import ANGLE_UNIT, fap_table, feature_points
 from ..mpeg4.fapstream import FapStream
 from ..mpeg4.jaw import JAW_CARRIED, jaw_hinge, jaw_swing
+from ..parts import FaceParts
 from ..target import Target
 from .deform import deform_parts
-from ..parts import FaceParts
 
 __all__ = ["fap_displacements", "animate_faps", "held", "turn_head"]
 
