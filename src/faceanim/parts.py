@@ -16,8 +16,9 @@ follow (teeth that stay put while the chin drops 2 cm). Each vertex therefore ge
     eyeballs: turn about their centres with the gaze.
 ``lid_layer``
     lashes, eye-occlusion and tear layers: ride on the nearest skin.
-``mouth_socket``
-    the inside of the mouth as a separate piece: its rim rides on the lips, its floor on the jaw.
+``socket``
+    the lining of an opening as a separate piece (a mouth socket, or an eye cap that is no ball):
+    it hangs from its rim, which rides on the lips or the lids.
 ``static``
     anything else that holds no control point (hair, a hat): keeps still with the skull.
 
@@ -45,9 +46,9 @@ from .geometry.topology import component_labels
 from .mpeg4.jaw import jaw_hinge
 from .target import Target
 
-__all__ = ["ROLES", "FaceParts", "face_parts", "read_parts_file", "face_axes"]
+__all__ = ["ROLES", "FaceParts", "face_parts", "read_parts_file", "face_axes", "INNER_LIP_POINTS"]
 
-ROLES = ("skin", "upper_teeth", "lower_teeth", "eye_left", "eye_right", "lid_layer", "mouth_socket", "static")
+ROLES = ("skin", "upper_teeth", "lower_teeth", "eye_left", "eye_right", "lid_layer", "socket", "static")
 _ROLE = {name: k for k, name in enumerate(ROLES)}
 
 # Words in part names (OBJ materials, groups) and the role they imply; the first match wins, so the
@@ -56,7 +57,7 @@ _NAME_WORDS = (
     (("lash", "occlusion", "lacrimal", "tear", "blend", "lid", "brow"), "lid_layer"),
     (("teeth", "tooth", "gum", "tongue", "palate"), "teeth"),
     (("sclera", "iris", "cornea", "pupil", "eyeball", "eye"), "eye"),
-    (("mouth", "socket", "oral"), "mouth_socket"),
+    (("mouth", "socket", "oral"), "socket"),
 )
 # Points on the eyeballs, not the skin (placement puts the irises on the eyeball where there is one).
 _EYEBALL_POINTS = frozenset({"3.5", "3.6", *(f"mp{i}" for i in range(468, 478))})
@@ -65,6 +66,9 @@ _UPPER_LIP = ("2.2", "2.6", "2.7", "8.1", "8.5", "8.6",
               *(f"mp{i}" for i in (191, 80, 81, 82, 13, 312, 311, 310, 415, 0, 37, 39, 40, 267, 269, 270)))
 _LOWER_LIP = ("2.3", "2.8", "2.9", "8.2", "8.7", "8.8",
               *(f"mp{i}" for i in (95, 88, 178, 87, 14, 317, 402, 318, 324, 17, 84, 181, 314, 405)))
+# Control points on the lips' inner rims, where lips meet teeth.
+INNER_LIP_POINTS = ("2.2", "2.3", "2.4", "2.5", "2.6", "2.7", "2.8", "2.9",
+                    *(f"mp{i}" for i in (13, 14, 78, 308, 82, 87, 312, 317, 80, 88, 310, 318)))
 _FRAME_POINTS = ("3.7", "3.8", "3.11", "3.12", "8.3", "8.4", "2.1")
 
 
@@ -181,7 +185,7 @@ def face_parts(target: Target, *, labels: dict | None = None, source: str = "") 
     _split_teeth(mesh, role, kind, jaw, frame)
     skin = role == _ROLE["skin"]
     jaw[skin] = _skin_jaw_weight(mesh, skin, frame, target)
-    socket = role == _ROLE["mouth_socket"]
+    socket = role == _ROLE["socket"]
     jaw[socket] = frame.below_bite(mesh.vertices[socket])
     return FaceParts(role, np.clip(jaw, 0.0, 1.0), frame.hinge, axes, eye_centres)
 
@@ -317,6 +321,10 @@ def _roles(mesh: Mesh, target: Target, frame: _Frame, hint: np.ndarray, where: s
             elif found in ("upper_teeth", "lower_teeth"):
                 role[piece] = _ROLE[found]
                 kind[piece] = "given"
+            elif found == "eye" and label in skin_parts:
+                role[piece] = _ROLE["skin"]  # an eye cap stitched to the lids must follow them, not turn alone
+            elif found == "eye" and not _is_ball(mesh.vertices[piece], frame):
+                role[piece] = _ROLE["socket"]  # a flat cap painted as an eye: it must not part from the lids
             elif found == "eye":
                 role[piece] = _ROLE["eye_left" if centre[0] > frame.mouth[0] else "eye_right"]
             else:
@@ -345,7 +353,7 @@ def _role_of_place(mesh: Mesh, piece: np.ndarray, centre: np.ndarray, frame: _Fr
     """The role of an unlabelled piece from where it sits."""
     if is_skin:
         return "skin"
-    for side, eye in frame.eyes.items():
+    for eye in frame.eyes.values():
         if np.linalg.norm(centre - eye) < 0.9 * frame.eye_width:
             local = frame.local(mesh.vertices[piece])
             size = np.ptp(local, axis=0)
@@ -355,6 +363,25 @@ def _role_of_place(mesh: Mesh, piece: np.ndarray, centre: np.ndarray, frame: _Fr
     if frame.in_mouth(centre):
         return "teeth"
     return "static"
+
+
+def _is_ball(points: np.ndarray, frame: _Frame) -> bool:
+    """Whether points lie on a sphere of an eyeball's size (an eyeball, or its iris): a person's is
+    about 1.2 cm across its radius against an eye 3 cm wide from corner to corner."""
+    return _sphere(points, 0.6 * frame.eye_width) is not None
+
+
+def _sphere(points: np.ndarray, largest: float):
+    """The centre of the sphere through ``points`` (least squares), or None where they make none of
+    radius under ``largest`` (within a fifth of its radius)."""
+    if len(points) < 10:
+        return None
+    A = np.c_[2 * points, np.ones(len(points))]
+    solution, *_ = np.linalg.lstsq(A, (points ** 2).sum(axis=1), rcond=None)  # |p|^2 = 2 c.p + r^2 - |c|^2
+    centre = solution[:3]
+    radius = np.sqrt(max(solution[3] + centre @ centre, 0.0))
+    spread = np.abs(np.linalg.norm(points - centre, axis=1) - radius).max()
+    return centre if 0 < radius < largest and spread < 0.2 * radius else None
 
 
 def _split_teeth(mesh: Mesh, role: np.ndarray, kind: np.ndarray, jaw: np.ndarray, frame: _Frame) -> None:
@@ -437,10 +464,7 @@ def _skin_jaw_weight(mesh: Mesh, skin: np.ndarray, frame: _Frame, target: Target
     lip_bottom = frame.local_points["8.2"][1] if "8.2" in frame.local_points else mouth[1] - 0.1 * w
     band = np.maximum(0.3 * w * s * s * (3 - 2 * s), mouth[1] - lip_bottom)
     fixed = np.full(len(ids), np.nan)
-    fixed[(above < -band) & (under_jaw < -0.05 * w) & (z > hinge[2] + 0.25 * depth)] = 1.0
-    inside = (z < mouth[2] - 0.15 * w) & (np.abs(x - mouth[0]) < 0.6 * w) & (y > chin[1]) & (y < mouth[1] + 0.5 * w)
-    socket = inside & (z > hinge[2] + 0.3 * depth)
-    fixed[socket] = frame.below_bite(mesh.vertices[ids][socket])
+    fixed[(above < -band) & (under_jaw < 0.02 * w) & (z > hinge[2] + 0.25 * depth)] = 1.0
     fixed[above > 0.1 * w] = 0.0  # the upper lip and everything above
     fixed[z < hinge[2]] = 0.0  # the ears and the back of the head
     fixed[under_jaw > 0.8 * w] = 0.0  # the neck, well below the jaw line: the skin between stretches
@@ -478,15 +502,5 @@ def _eye_centre(mesh: Mesh, ball: np.ndarray, frame: _Frame, side: str) -> np.nd
     middle of the eye's corners by a third of the eye's width."""
     fallback_local = frame.eyes[side] - np.array([0.0, 0.0, 0.38 * frame.eye_width])
     fallback = fallback_local @ frame.axes + frame.origin
-    if ball.sum() < 10:
-        return fallback
-    p = mesh.vertices[ball]
-    # Least-squares sphere: |p|^2 = 2 c.p + (r^2 - |c|^2).
-    A = np.c_[2 * p, np.ones(len(p))]
-    solution, *_ = np.linalg.lstsq(A, (p ** 2).sum(axis=1), rcond=None)
-    centre = solution[:3]
-    radius = np.sqrt(max(solution[3] + centre @ centre, 0.0))
-    spread = np.abs(np.linalg.norm(p - centre, axis=1) - radius).max()
-    if radius > 0 and spread < 0.2 * radius and radius < frame.eye_width:
-        return centre
-    return fallback
+    centre = _sphere(mesh.vertices[ball], 0.6 * frame.eye_width)
+    return fallback if centre is None else centre

@@ -37,7 +37,7 @@ _SWATCH_ROWS = 16
 # Depths behind the openings (cm), chosen so that nothing shows through closed lids or lips.
 _EYE_RECESS, _EYE_WIDENING = 0.12, 1.12
 _MOUTH_RECESS, _MOUTH_WIDENING, _MOUTH_DROP = 1.0, 1.15, 2.0
-_TEETH_RECESS, _TEETH_SPAN = 0.35, (0.25, -0.45)
+_TEETH_RECESS, _TEETH_SPAN, _TEETH_WIDTH = 0.35, (0.25, -0.45), 0.8
 
 
 def face_from_landmarks(landmarks, image: np.ndarray, *, subdivisions: int = 2, max_texture: int = 1024) -> Mesh:
@@ -192,6 +192,9 @@ class _PartBuilder:
         chains = lip[a:b + 1], np.vstack([lip[b:], lip[:a + 1]])  # the two lips, corner to corner
         upper = max(chains, key=lambda chain: chain[:, 1].mean())
         upper = upper[np.argsort(upper[:, 0])]
+        # Narrower than the lips, so the corners drawn in ("oh") do not push through to the teeth.
+        middle = 0.5 * (upper[0, 0] + upper[-1, 0])
+        upper[:, 0] = middle + _TEETH_WIDTH * (upper[:, 0] - middle)
         top = upper + [0.0, _TEETH_SPAN[0], -_TEETH_RECESS]
         bottom = upper + [0.0, _TEETH_SPAN[1], -_TEETH_RECESS]
         n = len(upper)

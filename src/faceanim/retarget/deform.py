@@ -15,9 +15,10 @@ import numpy as np
 from ..errors import InputError
 from ..geometry.mesh import Mesh
 from ..geometry.project import project_points
+from ..geometry.relax import FoldRelaxer
 from ..mpeg4 import ANGLE_UNIT, fap_table
 from ..mpeg4.fapstream import FapStream
-from ..parts import FaceParts
+from ..parts import INNER_LIP_POINTS, FaceParts
 from ..target import Target
 from .transfer import SparseTransfer
 
@@ -77,7 +78,8 @@ class PartsDeformer:
     ``(T, 2, 3, 3)`` gives positions ``(T, V, 3)``.
     """
 
-    def __init__(self, target: Target, parts: FaceParts, control_vertices, *, falloff: float = 0.25):
+    def __init__(self, target: Target, parts: FaceParts, control_vertices, *, falloff: float = 0.25,
+                 relax: bool = True):
         mesh = target.mesh
         ids = np.asarray(control_vertices, dtype=np.int64)
         skin = parts.mask("skin")
@@ -98,22 +100,94 @@ class PartsDeformer:
         axis = parts.axes[0]
         self._turn_sin = np.cross(axis, r)  # (R - I) r = sin(t) a x r + (1 - cos(t)) a x (a x r)
         self._turn_cos = np.cross(axis, self._turn_sin)
-        self._riders = self._bind_riders(mesh, skin_mesh, target)
+        self._bind_riders(mesh, skin_mesh)
+        self._bind_lips(target)
+        self.relaxer = FoldRelaxer(skin_mesh.vertices, skin_mesh.triangles) if relax else None
 
-    def _bind_riders(self, mesh: Mesh, skin_mesh: Mesh, target: Target):
-        """Lid layers and a separate mouth socket: the skin point each rides on (skin-local corner ids,
-        barycentric weights) and how much it rides rather than following the jaw."""
-        riders = np.flatnonzero(self.parts.mask("lid_layer", "mouth_socket"))
-        if not len(riders):
-            return None
-        hit = project_points(skin_mesh, mesh.vertices[riders])
-        ride = np.ones(len(riders))
-        socket = self.parts.mask("mouth_socket")[riders]
-        if socket.any():
-            mouth = target.mesh.vertices[target.ids(["8.3", "8.4"])]
-            reach = 0.15 * np.linalg.norm(mouth[0] - mouth[1])
-            ride[socket] = np.exp(-(hit.distances[socket] / reach) ** 2)
-        return riders, hit.corner_vertices, hit.barycentric, ride
+    def _bind_riders(self, mesh: Mesh, skin_mesh: Mesh):
+        """Lid layers and the rim of a separate mouth socket ride on the skin point nearest each
+        (skin-local corner ids, barycentric weights); the rest of a socket hangs from its rim (the
+        harmonic fill of the rim's motion over it), so the inside of the mouth spans the lips however
+        far they part, with its floor going down with the lower lip."""
+        socket = self.parts.mask("socket")
+        rim = np.zeros(len(mesh.vertices), dtype=bool)
+        socket_triangles = mesh.triangles[socket[mesh.triangles].all(axis=1)]
+        if len(socket_triangles):
+            rim[_open_boundary(socket_triangles)] = True
+        layers = np.flatnonzero(self.parts.mask("lid_layer"))
+        hit = project_points(skin_mesh, mesh.vertices[layers])
+        corners, bary = hit.corner_vertices, hit.barycentric
+        rims = np.flatnonzero(socket & rim)
+        if len(rims):
+            # A socket's rim copies the opening's edge, set back and widened: it rides on the edge
+            # vertex it copies (the nearest across the face), not on whatever skin is nearest in space.
+            edge = _open_boundary(skin_mesh.triangles)
+            across = self.parts.axes[:2]
+            gap = ((mesh.vertices[rims] @ across.T)[:, None] - (skin_mesh.vertices[edge] @ across.T)[None]) ** 2
+            nearest = edge[np.argmin(gap.sum(axis=2), axis=1)]
+            corners = np.vstack([corners, np.repeat(nearest[:, None], 3, axis=1)])
+            bary = np.vstack([bary, np.tile([1.0, 0.0, 0.0], (len(rims), 1))])
+        riders = np.r_[layers, rims]
+        self._riders = (riders, corners, bary) if len(riders) else None
+        hanging = np.flatnonzero(socket & ~rim)
+        self._hanging = None
+        if len(hanging) and rim[socket].any():
+            self._hanging = hanging, np.flatnonzero(socket & rim), _harmonic_fill(
+                socket_triangles, len(mesh.vertices), hanging, np.flatnonzero(socket & rim))
+
+    def _bind_lips(self, target: Target):
+        """The skin near the lips' inner rims (skin-local ids) and, per rigid teeth set, its rest
+        vertices and outward normals (a KD-tree over them), for keeping the lips out of the teeth."""
+        from scipy.spatial import cKDTree
+
+        self._lips = None
+        names = [n for n in INNER_LIP_POINTS if n in target.points]
+        sets = []
+        for role, weight in (("upper_teeth", 0.0), ("lower_teeth", 1.0)):
+            ids = np.flatnonzero(self.parts.mask(role) & (self.parts.jaw_weight == weight))
+            if len(ids):
+                sets.append([weight, cKDTree(self.rest[ids]), self.rest[ids], target.mesh.vertex_normals[ids]])
+        if not names or not sets or not {"8.3", "8.4"} <= target.points.keys():
+            return
+        corners = self.rest[target.ids(["8.3", "8.4"])]
+        self._reach = 0.12 * np.linalg.norm(corners[0] - corners[1])
+        rims = self.rest[target.ids(names)]
+        near = cKDTree(rims).query(self.rest[self.skin_ids], distance_upper_bound=self._reach)[0] < np.inf
+        lips = np.flatnonzero(near)
+        for teeth in sets:  # how deep each lip vertex already sits at rest (a lip resting on the teeth)
+            teeth.append(np.maximum(self._depth(self.rest[self.skin_ids[lips]], teeth)[0], 0.0))
+        self._lips = lips, sets
+
+    def _depth(self, points: np.ndarray, teeth) -> tuple:
+        """How far ``points (..., 3)`` (in the teeth's rest frame) lie behind the teeth's surface, their
+        distance to it, and the outward normal there."""
+        _, tree, surface, normals = teeth[:4]
+        distance, nearest = tree.query(points.reshape(-1, 3))
+        distance, nearest = distance.reshape(points.shape[:-1]), nearest.reshape(points.shape[:-1])
+        return ((surface[nearest] - points) * normals[nearest]).sum(axis=-1), distance, normals[nearest]
+
+    def _lips_out_of_teeth(self, skin_field: np.ndarray, angles: np.ndarray) -> None:
+        """Push lip vertices that went behind the teeth's surface back in front of it (in place)."""
+        if self._lips is None:
+            return
+        lips, sets = self._lips
+        h, a = self.parts.hinge, self.parts.axes[0]
+        for teeth in sets:
+            weight, at_rest = teeth[0], teeth[4]
+            p = self.rest[self.skin_ids[lips]][None] + skin_field[:, lips]  # (T, N, 3)
+            turn = weight * np.asarray(angles)[:, None, None]
+            r = p - h
+            # In the teeth's own (rest) frame: undo their turn about the hinge.
+            cos, sin = np.cos(turn), np.sin(turn)
+            local = h + r * cos - np.cross(a, r) * sin + a * (r @ a)[..., None] * (1 - cos)
+            depth, distance, normal = self._depth(local, teeth)
+            inside = (depth > at_rest + 1e-9) & (distance < self._reach)
+            if not inside.any():
+                continue
+            push = np.where(inside, depth - at_rest + 0.01 * self._reach, 0.0)[..., None] * normal
+            # Back to the posed frame: the push turns with the teeth.
+            pushed = push * cos + np.cross(a, push) * sin + a * (push @ a)[..., None] * (1 - cos)
+            skin_field[:, lips] += pushed
 
     def jaw_turn(self, angles) -> np.ndarray:
         """``(T, V, 3)`` every vertex turned fully about the hinge by ``angles (T,)``."""
@@ -149,11 +223,17 @@ class PartsDeformer:
         residual = displacements[:, self.on_skin] - turned[:, controls]
         moved = turned
         skin_field = turned[:, self.skin_ids] + self.spread(residual)
+        self._lips_out_of_teeth(skin_field, np.asarray(angles, dtype=np.float64))
+        if self.relaxer is not None:
+            relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field)
+            skin_field = relaxed - self.rest[self.skin_ids]
         moved[:, self.skin_ids] = skin_field
         if self._riders is not None:
-            riders, corners, bary, ride = self._riders
-            carried = np.einsum("nc,tncd->tnd", bary, skin_field[:, corners])
-            moved[:, riders] = ride[None, :, None] * carried + (1 - ride)[None, :, None] * turned[:, riders]
+            riders, corners, bary = self._riders
+            moved[:, riders] = np.einsum("nc,tncd->tnd", bary, skin_field[:, corners])
+        if self._hanging is not None:
+            hanging, rim, fill = self._hanging
+            moved[:, hanging] = np.einsum("hr,trd->thd", fill, moved[:, rim])
         if eyes is not None:
             eyes = np.asarray(eyes, dtype=np.float64)
             for k, side in enumerate(("eye_left", "eye_right")):
@@ -182,3 +262,25 @@ def deform_parts(target: Target, parts: FaceParts | None, control_vertices, disp
         angles = np.zeros(len(displacements))
     eyes = eye_rotations(gaze, parts) if gaze is not None else None
     return deformer(displacements, angles, eyes)
+
+
+def _open_boundary(triangles: np.ndarray) -> np.ndarray:
+    """Vertex ids on the open boundary of a triangulation (edges used by one triangle only)."""
+    edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    return np.unique(unique[counts == 1])
+
+
+def _harmonic_fill(triangles: np.ndarray, count: int, inner, rim) -> np.ndarray:
+    """``(I, R)``: the values at ``inner`` vertices that are the mean of their neighbours' (the graph
+    Laplacian's harmonic fill), given values at ``rim``; inner vertices no rim reaches hold 0."""
+    from scipy import sparse
+    from scipy.sparse.linalg import splu
+
+    edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    edges = np.unique(edges, axis=0)
+    A = sparse.coo_matrix((np.ones(2 * len(edges)), (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
+                          shape=(count, count)).tocsr()
+    L = sparse.diags(np.asarray(A.sum(axis=1)).ravel()) - A
+    L_ii = L[inner][:, inner] + sparse.eye(len(inner)) * 1e-9
+    return -splu(L_ii.tocsc()).solve(L[inner][:, rim].toarray())
