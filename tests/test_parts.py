@@ -60,7 +60,7 @@ def test_the_jaw_turns_the_lower_teeth_rigidly_and_controls_land_exactly(ict):
     target, parts = ict
     names = [n for n in target.points if not n.startswith("mp")]
     ids = np.unique(target.ids(names))
-    deformer = PartsDeformer(target, parts, ids)
+    deformer = PartsDeformer(target, parts, ids, relax=False)
     rng = np.random.default_rng(4)
     displacements = deformer.jaw_turn([0.0, 0.25, 0.4])[:, ids] * parts.jaw_weight[ids][None, :, None]
     displacements += rng.normal(scale=0.05, size=displacements.shape) * parts.mask("skin")[ids][None, :, None]
@@ -134,3 +134,63 @@ def test_labels_override_what_geometry_finds(ict):
     target, _ = ict
     parts = face_parts(target, labels={"lower_teeth": [[ICT_UPPER_TEETH.start, ICT_UPPER_TEETH.stop - 1]]})
     assert (parts.role[ICT_UPPER_TEETH] == 2).all() and (parts.jaw_weight[ICT_UPPER_TEETH] == 1).all()
+
+
+def test_decode_takes_a_parts_file_and_refuses_a_bad_one_before_any_work(tmp_path, capsys):
+    """--parts relabels the ICT head's teeth as still: an opening jaw then leaves them in place, where
+    without it the lower set follows the chin. A parts file naming a part the mesh lacks is one line
+    on stderr, exit 2, nothing written."""
+    from faceanim.cli import main
+    from faceanim.mpeg4.fapfile import write_fap
+    from faceanim.pipeline import decode
+
+    table = fap_table()
+    values = np.zeros((3, 68))
+    mask = np.zeros((3, 68), dtype=bool)
+    opening = table.number("open_jaw") - 1
+    values[:, opening] = [0, 400, 800]
+    mask[:, opening] = True
+    fap = tmp_path / "open.fap"
+    write_fap(fap, FapStream(values, mask, 25.0, name="open"))
+    mesh = shared("ict_facekit", "obj", "generic_neutral_mesh.obj")
+    moving = decode(fap, tmp_path / "a.glb", target_mesh=mesh)
+    lower = moving.positions[:, ICT_LOWER_TEETH]
+    assert np.linalg.norm(lower[2] - lower[0], axis=1).min() > 0.3  # the lower teeth go with the jaw (cm)
+    labels = tmp_path / "parts.json"
+    labels.write_text(json.dumps({"static": ["M_Teeth"]}))
+    still = decode(fap, tmp_path / "b.glb", target_mesh=mesh, parts=labels)
+    np.testing.assert_allclose(still.positions[:, ICT_LOWER_TEETH], lower[[0, 0, 0]], atol=1e-9)
+    labels.write_text(json.dumps({"static": ["M_Hat"]}))
+    out = tmp_path / "c.glb"
+    assert main(["decode", str(fap), "--target", str(mesh), "--parts", str(labels), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "names part 'M_Hat', which the mesh lacks" in err[0], err
+    assert not out.exists()
+
+
+def test_lips_pressed_into_the_teeth_are_kept_in_front_of_them(ict):
+    """The lower lip's inner rim driven 1.2 cm straight back (into the lower incisors) stays in front
+    of the teeth: measured with the exact signed distance of geometry.quality, not the deformer's own."""
+    from faceanim.geometry.quality import penetration_depth
+
+    target, parts = ict
+    names = [n for n in target.points if not n.startswith("mp")]
+    ids = np.unique(target.ids(names))
+    pressed = np.zeros((2, len(ids), 3))
+    lower_lip = np.isin(ids, target.ids([n for n in ("2.3", "2.8", "2.9") if n in target.points]))
+    pressed[1, lower_lip] = -1.2 * parts.axes[2]
+    mesh = target.mesh
+    teeth = parts.mask("lower_teeth") & (parts.jaw_weight == 1) & (np.arange(len(mesh.vertices)) >= 17039)
+    tris = mesh.triangles[teeth[mesh.triangles].all(axis=1)]
+    local = np.full(len(mesh.vertices), -1)
+    local[np.flatnonzero(teeth)] = np.arange(teeth.sum())
+    lip = np.flatnonzero(parts.mask("skin") & (np.linalg.norm(mesh.vertices - mesh.vertices[
+        target.points["2.3"]], axis=1) < 0.6))
+    depths = {}
+    for keep in (False, True):
+        deformer = PartsDeformer(target, parts, ids, relax=False)
+        if not keep:
+            deformer._lips = None
+        positions = deformer(pressed, [0.0, 0.0], fit_weights=False)
+        depths[keep] = penetration_depth(positions[:, lip], positions[:, teeth], local[tris])[1]
+    assert depths[False] > 0.05 and depths[True] < 0.1 * depths[False], depths

@@ -76,6 +76,11 @@ def _parser() -> argparse.ArgumentParser:
         p.add_argument("source", metavar=source)
         p.add_argument("-o", "--output", required=True, metavar="OUT.glb")
         _target_arguments(p)
+        p.add_argument("--parts", metavar="PARTS.json",
+                       help='label the target\'s parts where its file and shape do not tell them apart: '
+                            '{"teeth": ["M_Teeth"], "skin": [[0, 9408]], ...} (roles: skin, teeth, upper_teeth, '
+                            'lower_teeth, eye, eye_left, eye_right, lid_layer, socket, static; part names or '
+                            '[first, last] vertex ranges)')
         p.add_argument("--preview", metavar="PREVIEW.mp4", help="also render the animation to a video")
         p.add_argument("--head-motion", action="store_true", help="turn the head as the FAPs (48-50) say")
         p.add_argument("--obj-sequence", metavar="DIR", help="also write the animation as numbered OBJ files")
@@ -180,7 +185,8 @@ def main(argv=None) -> int:
         elif args.command == "decode":
             animation = pipeline.decode(args.source, args.output, target_mesh=args.target, points=args.points,
                                         fdp=args.fdp, preview=args.preview, head_motion=args.head_motion,
-                                        obj_sequence=args.obj_sequence, csv=args.csv, progress=progress)
+                                        obj_sequence=args.obj_sequence, csv=args.csv, progress=progress,
+                                        parts=args.parts)
             print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
                                                                        else ""))
         elif args.command == "animate":
@@ -188,7 +194,7 @@ def main(argv=None) -> int:
                                             fdp=args.fdp, preview=args.preview, fap=args.fap,
                                             head_motion=args.head_motion, obj_sequence=args.obj_sequence,
                                             csv=args.csv, via=args.via, neutral=args.neutral,
-                                            smoothing=not args.no_filter, progress=progress)
+                                            smoothing=not args.no_filter, progress=progress, parts=args.parts)
             print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
                                                                        else ""))
         elif args.command == "avatar":

@@ -183,6 +183,13 @@ def face_parts(target: Target, *, labels: dict | None = None, source: str = "") 
     eye_centres = np.stack([_eye_centre(mesh, role == _ROLE[side], frame, side) for side in ("eye_left", "eye_right")])
     jaw = np.zeros(len(mesh.vertices))
     _split_teeth(mesh, role, kind, jaw, frame)
+    rigid_lower = (role == _ROLE["lower_teeth"]) & np.isin(kind, ("rigid", "given"))
+    _centre_behind_the_teeth(mesh, rigid_lower, frame)
+    split = kind == "split"
+    if split.any():  # the tongue's root, behind the turning centre, hangs from the skull, not the jaw
+        depth = frame.local(mesh.vertices[split])[:, 2] - frame.hinge_local[2]
+        s = np.clip(depth / (0.2 * frame.mouth_width), 0.0, 1.0)
+        jaw[split] *= s * s * (3 - 2 * s)
     skin = role == _ROLE["skin"]
     jaw[skin] = _skin_jaw_weight(mesh, skin, frame, target)
     socket = role == _ROLE["socket"]
@@ -384,6 +391,22 @@ def _sphere(points: np.ndarray, largest: float):
     return centre if 0 < radius < largest and spread < 0.2 * radius else None
 
 
+def _centre_behind_the_teeth(mesh: Mesh, lower: np.ndarray, frame: _Frame) -> None:
+    """Where the lower teeth are known, the jaw's turning centre goes behind the last of them, level
+    with the bite there (the ramus rises behind the molars; a centre in front of them would lift
+    the back molars as the jaw opens). Feature points placed on a silhouette (the jaw's corners) say
+    little about depth."""
+    if not lower.any():
+        return
+    local = frame.local(mesh.vertices[lower])
+    back = local[:, 2].min() - 0.25 * frame.mouth_width
+    if back >= frame.hinge_local[2]:
+        return
+    level = frame.bite[0] + frame.bite[1] * local[:, 2].min()
+    frame.hinge_local = np.array([frame.hinge_local[0], level, back])
+    frame.hinge = frame.hinge_local @ frame.axes + frame.origin
+
+
 def _split_teeth(mesh: Mesh, role: np.ndarray, kind: np.ndarray, jaw: np.ndarray, frame: _Frame) -> None:
     """Teeth, gums and tongue to the skull or the jaw: whole pieces by their centres (about the gap
     between the upper and lower pieces), pieces that straddle the bite vertex by vertex."""
@@ -404,6 +427,7 @@ def _split_teeth(mesh: Mesh, role: np.ndarray, kind: np.ndarray, jaw: np.ndarray
         above = local[:, 1] - frame.bite[1] * local[:, 2] - frame.bite[0]
         if min((above > band).mean(), (above < -band).mean()) > 0.25:
             weight = frame.below_bite(mesh.vertices[piece])  # gums and tongue in one piece
+            kind[piece] = "split"
             jaw[piece] = weight
             role[piece] = np.where(weight >= 0.5, _ROLE["lower_teeth"], _ROLE["upper_teeth"])
         elif not split:  # one set of teeth alone: upper if it reaches above the lips' meeting (the skull holds it)

@@ -266,11 +266,28 @@ def _preview(path, animation, target, progress, *, source_frames=None, size: int
             write(frame)
 
 
+def _read_parts(path):
+    """The labels of a ``--parts PARTS.json``, read before any work (None without one)."""
+    from .parts import read_parts_file
+
+    return None if path is None else read_parts_file(path)
+
+
+def _target_parts(target, labels, mesh_path):
+    """The target's parts, told apart before any long work, so a target whose parts cannot be told
+    apart is refused at once."""
+    from .parts import face_parts
+
+    return face_parts(target, labels=labels, source=str(mesh_path) if mesh_path is not None else "the avatar")
+
+
 def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview=None, head_motion=False,
-           target=None, obj_sequence=None, csv=None, progress=None):
+           target=None, obj_sequence=None, csv=None, progress=None, parts=None):
     """``faceanim decode``: a ``.fap`` file onto a target mesh, written as an animated ``.glb``.
     ``target``, a ready :class:`~faceanim.target.Target`, stands in for the mesh and its points;
-    ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None)."""
+    ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None);
+    ``parts``, a ``PARTS.json`` (see :func:`~faceanim.parts.read_parts_file`), labels the target's parts
+    where its file and its geometry do not tell them apart."""
     from .mpeg4.fapfile import read_fap
     from .progress import as_progress
     from .retarget.decode import animate_faps
@@ -278,10 +295,12 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     output = _check_output(output)
     _check_extra_outputs(obj_sequence, csv)
     shown = as_progress(progress)
+    labels = _read_parts(parts)
     stream = read_fap(fap_path)
     target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
+    pieces = _target_parts(target, labels, target_mesh)
     shown.status(f"playing {len(stream)} frames of FAPs on the target ({len(target.mesh.vertices):,} vertices)")
-    animation = animate_faps(stream, target, head_motion=head_motion)
+    animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
     shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
     _write_glb(output, animation, target)
     _write_extra_outputs(animation, stream, obj_sequence, csv, shown)
@@ -291,7 +310,8 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
 
 
 def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=None, fap=None, head_motion=False,
-            progress=None, neutral=None, target=None, obj_sequence=None, csv=None, via="motion", smoothing=True):
+            progress=None, neutral=None, target=None, obj_sequence=None, csv=None, via="motion", smoothing=True,
+            parts=None):
     """``faceanim animate``: a video of a face drives a target mesh. ``target``, a ready
     :class:`~faceanim.target.Target`, stands in for the mesh and its points. ``neutral``: the frames
     at rest (``FRAME`` or ``START:END``; found automatically when None); ``smoothing``: the One Euro filter.
@@ -317,7 +337,9 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     if neutral is not None and not isinstance(parse_neutral(str(neutral), 2**62), tuple):
         raise InputError("animate takes the neutral as FRAME or START:END")  # said before any work is done
     shown = as_progress(progress)
+    labels = _read_parts(parts)
     target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
+    pieces = _target_parts(target, labels, target_mesh)
     recorded = track_video(video, progress=shown)
     motion = motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
@@ -328,9 +350,9 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     shown.status(f"{'following the tracked motion' if via == 'motion' else 'playing the FAPs'} on the target "
                  f"({len(target.mesh.vertices):,} vertices)")
     if via == "motion":
-        animation = animate_motion(motion, target, head_motion=head_motion, gaze=stream)
+        animation = animate_motion(motion, target, head_motion=head_motion, gaze=stream, parts=pieces)
     else:
-        animation = animate_faps(stream, target, head_motion=head_motion)
+        animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
     shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
     _write_glb(output, animation, target)
     _write_extra_outputs(animation, stream, obj_sequence, csv, shown)

@@ -1,0 +1,22 @@
+"""Folds relaxed out of a deformed surface, and nothing else touched."""
+
+import numpy as np
+from conftest import grid_mesh
+
+from faceanim.geometry.relax import FoldRelaxer
+
+
+def test_a_fold_is_relaxed_and_a_frame_without_one_is_left_exactly_as_it_was():
+    mesh = grid_mesh(12)
+    rest = mesh.vertices
+    smooth = rest + 0.05 * np.sin(rest[:, :1] * 3)  # a gentle wave: nothing turns over
+    folded = rest.copy()
+    centre = np.argmin(np.linalg.norm(rest[:, :2] - 0.5, axis=1))
+    folded[centre, :2] += [0.2, 0.2]  # one vertex pulled over its neighbours
+    relaxer = FoldRelaxer(rest, mesh.triangles)
+    assert relaxer.turned(folded).any()
+    out, left = relaxer(np.stack([smooth, folded]))
+    np.testing.assert_array_equal(out[0], smooth)
+    assert left.tolist() == [0, 0] and not relaxer.turned(out[1]).any()
+    far = np.linalg.norm(rest[:, :2] - rest[centre, :2], axis=1) > 0.75
+    np.testing.assert_array_equal(out[1, far], folded[far])  # only the fold's neighbourhood moved
