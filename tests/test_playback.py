@@ -55,7 +55,24 @@ def express_surprise(folder: Path) -> Path:
     return path
 
 
-FILES = {"signed grid": signed_grid, "decode joy.fap": decode_joy, "express surprise": express_surprise}
+def animate_d18(folder: Path) -> Path:
+    """``faceanim animate d18.mp4`` onto the ICT head (216 frames at 30 fps; teeth, eyes, lashes)."""
+    pytest.importorskip("mediapipe", reason="needs faceanim[capture] to track the video")
+    path = folder / "d18.glb"
+    mesh = shared("ict_facekit", "obj", "generic_neutral_mesh.obj")
+    assert main(["animate", str(shared("videos", "d18.mp4")), "--target", str(mesh), "-o", str(path)]) == 0
+    return path
+
+
+def demo(folder: Path) -> Path:
+    """``faceanim demo``: the avatar filmed performing, captured and retargeted."""
+    pytest.importorskip("mediapipe", reason="needs faceanim[capture] for the demo")
+    assert main(["demo", "-o", str(folder / "demo")]) == 0
+    return folder / "demo" / "demo.glb"
+
+
+FILES = {"signed grid": signed_grid, "decode joy.fap": decode_joy, "express surprise": express_surprise,
+         "animate d18 onto ICT": animate_d18, "demo": demo}
 
 
 @pytest.fixture(scope="module")
