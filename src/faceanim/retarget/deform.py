@@ -189,11 +189,12 @@ class PartsDeformer:
             pushed = push * cos + np.cross(a, push) * sin + a * (push @ a)[..., None] * (1 - cos)
             skin_field[:, lips] += pushed
 
-    def jaw_turn(self, angles) -> np.ndarray:
-        """``(T, V, 3)`` every vertex turned fully about the hinge by ``angles (T,)``."""
+    def jaw_turn(self, angles, vertices=None) -> np.ndarray:
+        """``(T, N, 3)`` the ``vertices`` (default: all) turned fully about the hinge by ``angles (T,)``."""
         angles = np.asarray(angles, dtype=np.float64)
-        return (np.sin(angles)[:, None, None] * self._turn_sin
-                + (1 - np.cos(angles))[:, None, None] * self._turn_cos)
+        at = slice(None) if vertices is None else vertices
+        return (np.sin(angles)[:, None, None] * self._turn_sin[at]
+                + (1 - np.cos(angles))[:, None, None] * self._turn_cos[at])
 
     def fitted_jaw_weight(self, displacements, angles) -> np.ndarray:
         """``(V,)`` the parts' jaw weight with the skin's share adjusted to the motion: at each control
@@ -205,7 +206,7 @@ class PartsDeformer:
         between control points the skin falls back towards the guess: a crease at every control."""
         weight = self.parts.jaw_weight.copy()
         controls = self.controls[self.on_skin]
-        turn = self.jaw_turn(angles)[:, controls]  # (T, K, 3)
+        turn = self.jaw_turn(angles, controls)  # (T, K, 3)
         energy = (turn ** 2).sum(axis=(0, 2))
         seen = energy > 1e-12 * max(energy.max(), 1e-300)
         share = np.where(seen, (np.asarray(displacements)[:, self.on_skin] * turn).sum(axis=(0, 2))
@@ -214,16 +215,25 @@ class PartsDeformer:
         weight[self.skin_ids] = np.clip(weight[self.skin_ids] + self.spread.operator @ change, 0.0, 1.0)
         return weight
 
-    def __call__(self, displacements, angles, eyes=None, *, fit_weights: bool = True) -> np.ndarray:
+    def __call__(self, displacements, angles, eyes=None, *, fit_weights: bool = True,
+                 chunk: int = 32) -> np.ndarray:
+        """Positions ``(T, V, 3)``; the work goes ``chunk`` frames at a time, so what it holds besides
+        the output does not grow with the length of the motion."""
         displacements = np.asarray(displacements, dtype=np.float64)
-        T = len(displacements)
+        angles = np.asarray(angles, dtype=np.float64)
         weight = self.fitted_jaw_weight(displacements, angles) if fit_weights else self.parts.jaw_weight
-        turned = self.jaw_turn(angles) * weight[None, :, None]  # (T, V, 3)
+        out = np.empty((len(displacements), len(self.rest), 3))
+        for start in range(0, len(displacements), chunk):
+            at = slice(start, start + chunk)
+            out[at] = self._frames(displacements[at], angles[at], None if eyes is None else eyes[at], weight)
+        return out
+
+    def _frames(self, displacements, angles, eyes, weight) -> np.ndarray:
+        moved = self.jaw_turn(angles) * weight[None, :, None]  # (T, V, 3)
         controls = self.controls[self.on_skin]
-        residual = displacements[:, self.on_skin] - turned[:, controls]
-        moved = turned
-        skin_field = turned[:, self.skin_ids] + self.spread(residual)
-        self._lips_out_of_teeth(skin_field, np.asarray(angles, dtype=np.float64))
+        residual = displacements[:, self.on_skin] - moved[:, controls]
+        skin_field = moved[:, self.skin_ids] + self.spread(residual)
+        self._lips_out_of_teeth(skin_field, angles)
         if self.relaxer is not None:
             relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field)
             skin_field = relaxed - self.rest[self.skin_ids]
@@ -241,8 +251,8 @@ class PartsDeformer:
                 if len(ball):
                     r = self.rest[ball] - self.parts.eye_centres[k]
                     moved[:, ball] = np.einsum("tij,nj->tni", eyes[:, k], r) - r
-        assert moved.shape == (T, len(self.rest), 3)
-        return self.rest + moved
+        moved += self.rest
+        return moved
 
 
 def deform_parts(target: Target, parts: FaceParts | None, control_vertices, displacements,
