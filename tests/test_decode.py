@@ -9,8 +9,8 @@ from faceanim.geometry import Mesh
 from faceanim.motion import Motion, motion_to_faps
 from faceanim.mpeg4 import FAP_COUNT, Fapu, fap_table
 from faceanim.mpeg4.fapfile import read_fap
-from faceanim.mpeg4.fapstream import FapStream
-from faceanim.retarget.decode import animate_faps, fap_displacements, held
+from faceanim.mpeg4.fapstream import FapStream, held
+from faceanim.retarget.decode import animate_faps, fap_displacements
 from faceanim.target import Target, target_from_fdp, target_from_json
 
 TABLE = fap_table()

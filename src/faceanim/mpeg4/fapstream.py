@@ -9,7 +9,7 @@ import numpy as np
 from ..validation import as_array
 from .tables import FAP_COUNT, fap_table
 
-__all__ = ["curve_columns", "FapStream", "fap_ranges"]
+__all__ = ["curve_columns", "FapStream", "fap_ranges", "held"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,6 +81,17 @@ class FapStream:
         """(T, 68) bool: present values outside the I-frame range of Table C-1 (see :func:`fap_ranges`)."""
         low, high = fap_ranges()
         return self.mask & ((self.values < low) | (self.values > high))
+
+
+def held(stream: FapStream) -> np.ndarray:
+    """(T, 68) values where a FAP absent from a frame keeps its last value (0 before its first), as an
+    MPEG-4 decoder does for FAPs a frame does not carry."""
+    values = np.where(stream.mask, stream.values, np.nan)
+    values[0] = np.where(np.isnan(values[0]), 0.0, values[0])
+    for t in range(1, len(values)):
+        missing = np.isnan(values[t])
+        values[t, missing] = values[t - 1, missing]
+    return values
 
 
 def fap_ranges() -> tuple[np.ndarray, np.ndarray]:

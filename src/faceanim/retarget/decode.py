@@ -6,25 +6,14 @@ import numpy as np
 
 from ..geometry.animation import Animation
 from ..mpeg4 import ANGLE_UNIT, fap_table, feature_points
-from ..mpeg4.fapstream import FapStream
+from ..mpeg4.fapstream import FapStream, held
 from ..mpeg4.jaw import JAW_CARRIED, jaw_hinge, jaw_swing
 from ..parts import FaceParts
 from ..target import Target
 from .deform import deform_parts
 
-__all__ = ["fap_displacements", "animate_faps", "held", "turn_head"]
+__all__ = ["fap_displacements", "animate_faps", "turn_head"]
 
-
-
-def held(stream: FapStream) -> np.ndarray:
-    """(T, 68) values where a FAP absent from a frame keeps its last value (0 before its first), as an
-    MPEG-4 decoder does for FAPs a frame does not carry."""
-    values = np.where(stream.mask, stream.values, np.nan)
-    values[0] = np.where(np.isnan(values[0]), 0.0, values[0])
-    for t in range(1, len(values)):
-        missing = np.isnan(values[t])
-        values[t, missing] = values[t - 1, missing]
-    return values
 
 
 def fap_displacements(stream: FapStream, target: Target) -> tuple[tuple[str, ...], np.ndarray]:

@@ -17,7 +17,7 @@ from ..geometry.mesh import Mesh
 from ..geometry.project import project_points
 from ..geometry.relax import FoldRelaxer
 from ..mpeg4 import ANGLE_UNIT, fap_table
-from ..mpeg4.fapstream import FapStream
+from ..mpeg4.fapstream import FapStream, held
 from ..parts import INNER_LIP_POINTS, FaceParts
 from ..target import Target
 from .transfer import SparseTransfer
@@ -44,8 +44,6 @@ def eye_rotations(stream: FapStream, parts: FaceParts) -> np.ndarray:
     """``(T, 2, 3, 3)`` the left and right eyeballs' rotations (model axes) from FAPs 23-26 (a FAP
     absent from a frame keeps its last value): yaw about the face's +y (positive towards its left),
     then pitch about +x (positive down), each clipped to :data:`GAZE_LIMITS`."""
-    from .decode import held
-
     table = fap_table()
     values = held(stream)
     out = np.zeros((len(stream), 2, 3, 3))
