@@ -128,12 +128,22 @@ def test_parts_file_errors(tmp_path, ict):
         face_parts(target, labels={"static": ["M_Hat"]})
     with pytest.raises(InputError, match=r"range \[0, 99999999\] is outside"):
         face_parts(target, labels={"static": [[0, 99999999]]})
+    with pytest.raises(InputError, match=r"range \[5, 2\] runs backwards"):
+        face_parts(target, labels={"static": [[5, 2]]})
+    missing = tmp_path / "nowhere.json"
+    with pytest.raises(InputError, match="nowhere.json: cannot be read"):
+        read_parts_file(missing)
 
 
 def test_labels_override_what_geometry_finds(ict):
     target, _ = ict
     parts = face_parts(target, labels={"lower_teeth": [[ICT_UPPER_TEETH.start, ICT_UPPER_TEETH.stop - 1]]})
     assert (parts.role[ICT_UPPER_TEETH] == 2).all() and (parts.jaw_weight[ICT_UPPER_TEETH] == 1).all()
+    # Names and ranges together: the range wins where they overlap, and both count.
+    first = ICT_LOWER_TEETH.start
+    mixed = face_parts(target, labels={"static": ["M_Teeth"], "lower_teeth": [[first, first + 99]]})
+    assert (mixed.role[first:first + 100] == 2).all() and (mixed.jaw_weight[first:first + 100] == 1).all()
+    assert mixed.mask("static")[ICT_UPPER_TEETH].all() and mixed.mask("static")[first + 100:ICT_LOWER_TEETH.stop].all()
 
 
 def test_decode_takes_a_parts_file_and_refuses_a_bad_one_before_any_work(tmp_path, capsys):

@@ -265,10 +265,14 @@ LOWERING = 1.0
 
 
 def _vertex_hints(mesh: Mesh, labels: dict | None, where: str) -> np.ndarray:
-    """``(V,)`` object array: the role each vertex's labels imply ("" where none), skin winning on a rim."""
+    """``(V,)`` object array: the role each vertex's labels imply ("" where none), skin winning on a rim.
+
+    Part names (the file's materials or groups) label whole parts; ``labels`` (a parts file) name parts
+    or vertex ranges, and a range wins over a name, being the more particular."""
     V = len(mesh.vertices)
     hint = np.full(V, "", dtype=object)
     names = mesh.part_names if mesh.parts is not None else ()
+    ranges = []
     if labels is not None:
         by_name = {}
         for role, entries in labels.items():
@@ -279,12 +283,15 @@ def _vertex_hints(mesh: Mesh, labels: dict | None, where: str) -> np.ndarray:
                         raise InputError(f"{where}the parts file names part {entry!r}, which the mesh lacks "
                                          f"(its parts: {known})")
                     by_name[entry] = role
-                else:
-                    first, last = entry
-                    if not 0 <= first <= last < V:
-                        raise InputError(f"{where}the parts file's range [{first}, {last}] is outside the mesh's "
-                                           f"vertices 0-{V - 1}")
-                    hint[first:last + 1] = role
+                    continue
+                first, last = entry
+                if first > last:
+                    raise InputError(f"{where}the parts file's range [{first}, {last}] runs backwards; "
+                                     "give it as [first, last]")
+                if last >= V:
+                    raise InputError(f"{where}the parts file's range [{first}, {last}] is outside the mesh's "
+                                     f"vertices 0-{V - 1}")
+                ranges.append((first, last, role))
         per_part = [by_name.get(n, "") for n in names]
     else:
         per_part = [_role_of_name(n) for n in names]
@@ -294,6 +301,8 @@ def _vertex_hints(mesh: Mesh, labels: dict | None, where: str) -> np.ndarray:
         for corner in range(3):
             hint[mesh.triangles[labelled, corner]] = tri_hint[labelled]
         hint[np.unique(mesh.triangles[~labelled])] = ""  # a rim shared with the skin (an eye cap stitched to the lids)
+    for first, last, role in ranges:
+        hint[first:last + 1] = role
     return hint
 
 
