@@ -218,3 +218,49 @@ def test_frames_in_chunks_give_what_all_frames_at_once_give(ict):
     displacements += rng.normal(scale=0.2, size=displacements.shape)
     np.testing.assert_array_equal(deformer(displacements, angles, chunk=2),
                                   deformer(displacements, angles, chunk=100))
+
+
+def test_a_target_of_no_human_size_is_refused_before_any_work(tmp_path, capsys):
+    """A face whose eyes are 0.0063 units apart (0.63 cm even in metres): decode says so in one line, naming the
+    file, and writes nothing (the unit used to be told only when the .glb was written, after the work)."""
+    from faceanim.cli import main
+    from faceanim.generic import generic_target
+    from faceanim.geometry import write_mesh
+
+    target = generic_target()
+    tiny = tmp_path / "tiny.obj"
+    write_mesh(tiny, target.mesh.with_vertices(target.mesh.vertices * 1e-3))
+    points = tmp_path / "points.json"
+    points.write_text(json.dumps({n: i for n, i in target.points.items() if not n.startswith("mp")}))
+    out = tmp_path / "o.glb"
+    fap = shared("xface", "Faps", "joy.fap")
+    code = main(["decode", str(fap), "--target", str(tiny), "--points", str(points), "-o", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "tiny.obj" in err[0] and "no human face" in err[0], err
+    assert not out.exists()
+
+
+def test_a_target_without_face_points_does_not_turn_a_jaw():
+    """A mesh with a chin point but no eyes or mouth corners: all skin, no jaw, and a displaced chin
+    moves by exactly its displacement (no turn about a made-up hinge on top)."""
+    from conftest import grid_mesh
+
+    from faceanim.retarget.deform import deform_parts
+    from faceanim.target import Target
+
+    mesh = grid_mesh(6)
+    target = Target(mesh, {"2.1": 3, "2.2": 20}, None)
+    shift = np.zeros((2, 2, 3))
+    shift[1, 0] = [0.0, -0.3, 0.1]
+    positions = deform_parts(target, None, [3, 20], shift)
+    np.testing.assert_allclose(positions[1, [3, 20]] - mesh.vertices[[3, 20]], shift[1], atol=1e-12)
+    np.testing.assert_allclose(positions[0], mesh.vertices, atol=1e-12)
+
+
+def test_coincident_eye_corners_are_refused_by_name():
+    from faceanim.parts import face_axes
+
+    p = {n: np.zeros(3) for n in ("3.7", "3.8", "3.11", "3.12")}
+    p.update({"8.3": np.array([1.0, -3, 0]), "8.4": np.array([-1.0, -3, 0]), "2.1": np.array([0.0, -5, 0])})
+    with pytest.raises(InputError, match="eyes have no width"):
+        face_axes(p)

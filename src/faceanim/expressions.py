@@ -139,7 +139,7 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
     from .export import MorphSet, morphs_from_animation, write_glb
     from .geometry import write_mesh
     from .geometry.animation import Animation
-    from .inputs import load_target
+    from .inputs import load_target, target_unit
     from .mpeg4.fapfile import write_fap
     from .progress import as_progress
     from .synth.expression import au_fields
@@ -160,6 +160,8 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
     recipe = expression_recipe(au=au, emotion=emotion, intensity=intensity)
     shown = as_progress(progress)
     target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
+    if output.suffix.lower() == ".glb":  # refused now, not after the muscles' work, if of no human size
+        unit = target_unit(target, str(target_mesh) if target_mesh is not None else "the target")
     fields, made, face = _target_fields(target, recipe, None if frames is None else int(frames), route, shown)
     suffix = output.suffix.lower()
     if suffix == ".obj":
@@ -181,12 +183,11 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
             weights = np.hstack([animated.weights, np.zeros((len(fields), len(codes)))])
             names = (*animated.names, *(f"AU{c}" for c in codes))
             morphs = MorphSet(np.concatenate([animated.targets, sliders]), names, weights, fps)
-        from .mpeg4 import metres_per_unit
         from .synth.facs import recipe_text
 
         write_glb(output, target.mesh, morphs, extras={"points": target.points, "recipe": recipe_text(made),
                                                        "au_faps": au_fap_table(face, codes, sliders)},
-                  metres_per_unit=metres_per_unit(target.fapu))
+                  metres_per_unit=unit)
     return fields, made
 
 

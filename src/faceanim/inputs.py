@@ -10,7 +10,7 @@ from pathlib import Path
 from .errors import InputError
 from .geometry import read_mesh
 
-__all__ = ["load_target", "capture_motion", "motion_of_track"]
+__all__ = ["load_target", "capture_motion", "motion_of_track", "target_unit"]
 
 
 def load_target(mesh_path=None, *, points=None, fdp=None, progress=None):
@@ -79,3 +79,14 @@ def motion_of_track(recorded, *, neutral=None, smoothing=True):
             neutral_points = points[0]
     return track_to_motion(recorded, neutral=window, smoothing=OneEuro() if smoothing else None,
                            neutral_points=neutral_points)
+
+
+def target_unit(target, source: str) -> float:
+    """Metres per model unit of ``target``, told from its FAPU before any long work: a face of no human
+    size is refused at once, naming it."""
+    from .mpeg4 import metres_per_unit
+
+    try:
+        return metres_per_unit(target.fapu)
+    except ValueError as exc:
+        raise InputError(f"{source}: {exc}") from None

@@ -123,9 +123,16 @@ def face_axes(points: dict) -> np.ndarray:
         raise InputError(f"the target lacks feature point{'s' if len(missing) > 1 else ''} {', '.join(missing)}, "
                          "which place its parts")
     x = (points["3.7"] + points["3.11"]) - (points["3.8"] + points["3.12"])
-    x /= np.linalg.norm(x)
     y = 0.25 * (points["3.7"] + points["3.8"] + points["3.11"] + points["3.12"]) - 0.5 * (points["8.3"] + points["8.4"])
+    size = np.linalg.norm(y)
+    x_length = np.linalg.norm(x)
+    if not np.isfinite(size) or x_length <= 1e-6 * max(size, 1e-300):
+        raise InputError("the target's eyes have no width (feature points 3.7/3.11 and 3.8/3.12 coincide); "
+                         "its parts cannot be placed")
+    x /= x_length
     y -= (y @ x) * x
+    if np.linalg.norm(y) <= 1e-6 * x_length:
+        raise InputError("the target's mouth (8.3/8.4) lies level with its eyes; its parts cannot be placed")
     y /= np.linalg.norm(y)
     return np.stack([x, y, np.cross(x, y)])
 

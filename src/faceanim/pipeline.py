@@ -12,7 +12,7 @@ import numpy as np
 from .errors import FileFormatError, InputError
 from .expressions import aus, express  # the expression jobs live in their own module; re-exported here
 from .geometry import read_mesh, write_mesh
-from .inputs import capture_motion, load_target, motion_of_track
+from .inputs import capture_motion, load_target, motion_of_track, target_unit
 from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
 
 __all__ = ["transfer", "read_pairs", "track", "encode", "fap_info", "avatar",
@@ -224,12 +224,12 @@ def _write_extra_outputs(animation, stream, obj_sequence, csv, progress) -> None
         write_obj_sequence(obj_sequence, animation)
 
 
-def _write_glb(path, animation, target) -> None:
-    """``animation`` as a ``.glb``, in metres (the target's unit told from its FAPU)."""
+def _write_glb(path, animation, unit: float) -> None:
+    """``animation`` as a ``.glb``, in metres (``unit``: metres per model unit, see
+    :func:`~faceanim.inputs.target_unit`)."""
     from .export import morphs_from_animation, write_glb
-    from .mpeg4 import metres_per_unit
 
-    write_glb(path, animation.mesh, morphs_from_animation(animation), metres_per_unit=metres_per_unit(target.fapu))
+    write_glb(path, animation.mesh, morphs_from_animation(animation), metres_per_unit=unit)
 
 
 def _letterbox(image: np.ndarray, size: int) -> np.ndarray:
@@ -273,12 +273,19 @@ def _read_parts(path):
     return None if path is None else read_parts_file(path)
 
 
-def _target_parts(target, labels, mesh_path):
+def _target_parts(target, labels, source: str):
     """The target's parts, told apart before any long work, so a target whose parts cannot be told
     apart is refused at once."""
     from .parts import face_parts
 
-    return face_parts(target, labels=labels, source=str(mesh_path) if mesh_path is not None else "the avatar")
+    return face_parts(target, labels=labels, source=source)
+
+
+def _target_name(mesh_path, given) -> str:
+    """What messages call the target: its file, a target handed in ready, or the default avatar."""
+    if mesh_path is not None:
+        return str(mesh_path)
+    return "the target" if given is not None else "the avatar"
 
 
 def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview=None, head_motion=False,
@@ -297,12 +304,14 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     shown = as_progress(progress)
     labels = _read_parts(parts)
     stream = read_fap(fap_path)
+    name = _target_name(target_mesh, target)
     target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
-    pieces = _target_parts(target, labels, target_mesh)
+    pieces = _target_parts(target, labels, name)
+    unit = target_unit(target, name)
     shown.status(f"playing {len(stream)} frames of FAPs on the target ({len(target.mesh.vertices):,} vertices)")
     animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
     shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
-    _write_glb(output, animation, target)
+    _write_glb(output, animation, unit)
     _write_extra_outputs(animation, stream, obj_sequence, csv, shown)
     if preview is not None:
         _preview(preview, animation, target, shown)
@@ -338,8 +347,10 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
         raise InputError("animate takes the neutral as FRAME or START:END")  # said before any work is done
     shown = as_progress(progress)
     labels = _read_parts(parts)
+    name = _target_name(target_mesh, target)
     target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
-    pieces = _target_parts(target, labels, target_mesh)
+    pieces = _target_parts(target, labels, name)
+    unit = target_unit(target, name)
     recorded = track_video(video, progress=shown)
     motion = motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
@@ -354,7 +365,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     else:
         animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
     shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
-    _write_glb(output, animation, target)
+    _write_glb(output, animation, unit)
     _write_extra_outputs(animation, stream, obj_sequence, csv, shown)
     if fap is not None:
         write_fap(fap, stream)

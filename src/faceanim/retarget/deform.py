@@ -203,6 +203,8 @@ class PartsDeformer:
         Without this the residual after the turn is wherever the parts' weights guessed wrong, and
         between control points the skin falls back towards the guess: a crease at every control."""
         weight = self.parts.jaw_weight.copy()
+        if not weight.any():  # a target with no jaw (no face points to place one): nothing to fit
+            return weight
         controls = self.controls[self.on_skin]
         turn = self.jaw_turn(angles, controls)  # (T, K, 3)
         energy = (turn ** 2).sum(axis=(0, 2))
@@ -264,7 +266,7 @@ def deform_parts(target: Target, parts: FaceParts | None, control_vertices, disp
     ids = np.asarray(control_vertices, dtype=np.int64)
     deformer = PartsDeformer(target, parts, ids)
     chin = np.flatnonzero(ids == target.points.get("2.1", -1))
-    if len(chin):
+    if len(chin) and parts.jaw_weight.any():
         angles = jaw_angles(parts, target.mesh.vertices[ids[chin[0]]], displacements[:, chin[0]])
     else:
         angles = np.zeros(len(displacements))
