@@ -43,11 +43,12 @@ def correct_jaw_depth(rest: np.ndarray, displacements: np.ndarray) -> np.ndarray
 
     Per frame, the jaw's turn about the hinge (a small angle about the x axis) is fitted twice over
     the chin points: once to their vertical motion, once to their depth. The carried points' depth
-    then gains the difference between the two turns, at their own lever arm. A face whose chin does
+    then gains the difference between the two turns, at their own lever arm, fading out over the
+    points beside and just below the mouth corners (:func:`_carried_share`). A face whose chin does
     not move (a smile, a blink) is left unchanged. NaN frames stay NaN.
     """
     d = np.array(displacements, dtype=np.float64)
-    carried, chin, hinge = jaw_carried(rest)
+    _, chin, hinge = jaw_carried(rest)
     if len(chin) == 0:
         return d
     arm = np.asarray(rest, dtype=np.float64)[:, :3] - hinge
@@ -63,9 +64,10 @@ def correct_jaw_depth(rest: np.ndarray, displacements: np.ndarray) -> np.ndarray
 
 
 def _carried_share(rest: np.ndarray) -> np.ndarray:
-    """``(468,)`` how much of the depth correction each point takes: 1 well inside the points :func:`jaw_carried`
-    names, fading to 0 over a tenth of the face's width beside and above them. A hard edge left the
-    jaw's sides 2 cm apart in depth from their neighbours just outside it, a crease along the jaw."""
+    """``(468,)`` how much of the depth correction each point takes: 1 within 0.3 face widths of the
+    middle and 0.12 widths below the mouth corners, fading to 0 at 0.4 widths beside the middle and
+    at 0.02 widths below the corners (where :func:`jaw_carried`'s hard edges were). That hard edge left
+    the jaw's sides 2 cm apart in depth from their neighbours just outside it, a crease along the jaw."""
     width = abs(rest[_EAR_POINTS[0], 0] - rest[_EAR_POINTS[1], 0])
     hinge = rest[list(_EAR_POINTS)].mean(axis=0)
     corners = rest[list(_MOUTH_CORNERS), 1].mean()

@@ -2,10 +2,12 @@
 
 The skin turns with the jaw about its hinge (each vertex by its jaw weight: smooth skinning along the
 surface) and the tracked motion's residual after that turn is spread on top by surface-aware
-interpolation, so every control point still lands exactly where the motion puts it. The teeth are
-rigid: the upper set with the skull, the lower set (and the tongue) turned by the same jaw. Eyeballs
-turn about their centres with the gaze. Lashes and other lid layers ride on the skin beneath them;
-a separate mouth socket's rim rides on the lips and its floor on the jaw. See :mod:`faceanim.parts`.
+interpolation, so every control point lands where the motion puts it, except where that would fold
+the skin (folds are relaxed, :class:`~faceanim.geometry.relax.FoldRelaxer`) or push a lip into the
+teeth (it is pushed back out). The teeth are rigid: the upper set with the skull, the lower set (and
+the tongue) turned by the same jaw. Eyeballs turn about their centres with the gaze. Lashes and other
+lid layers ride on the skin beneath them; a separate socket (a mouth lining, an eye cap) hangs from
+its rim, which rides on the opening's edge. See :mod:`faceanim.parts`.
 """
 
 from __future__ import annotations
