@@ -189,19 +189,31 @@ def face_parts(target: Target, *, labels: dict | None = None, source: str = "") 
     role, kind = _roles(mesh, target, frame, hint, where)
     eye_centres = np.stack([_eye_centre(mesh, role == _ROLE[side], frame, side) for side in ("eye_left", "eye_right")])
     jaw = np.zeros(len(mesh.vertices))
-    _split_teeth(mesh, role, kind, jaw, frame)
-    rigid_lower = (role == _ROLE["lower_teeth"]) & np.isin(kind, ("rigid", "given"))
-    _centre_behind_the_teeth(mesh, rigid_lower, frame)
+    # The frame's bite and turning centre start from the feature points; the teeth, where there are
+    # any, say better, in this order (the centre sits level with the bite).
+    pieces, centres = _teeth_pieces(mesh, kind, frame)
+    bite = _fitted_bite(centres, frame)
+    if bite is not None:
+        frame.bite = bite
+    _split_teeth(mesh, role, kind, jaw, frame, pieces, centres, fitted=bite is not None)
+    centre = _centre_behind_the_teeth(mesh, (role == _ROLE["lower_teeth"]) & np.isin(kind, ("rigid", "given")), frame)
+    if centre is not None:
+        frame.move_centre(centre)
     split = kind == "split"
     if split.any():  # the tongue's root, behind the turning centre, hangs from the skull, not the jaw
         depth = frame.local(mesh.vertices[split])[:, 2] - frame.hinge_local[2]
-        s = np.clip(depth / (0.2 * frame.mouth_width), 0.0, 1.0)
-        jaw[split] *= s * s * (3 - 2 * s)
+        jaw[split] *= _smoothstep(depth / (0.2 * frame.mouth_width))
     skin = role == _ROLE["skin"]
     jaw[skin] = _skin_jaw_weight(mesh, skin, frame, target)
     socket = role == _ROLE["socket"]
     jaw[socket] = frame.below_bite(mesh.vertices[socket])
     return FaceParts(role, np.clip(jaw, 0.0, 1.0), frame.hinge, axes, eye_centres)
+
+
+def _smoothstep(s) -> np.ndarray:
+    """0 below 0, 1 above 1, and the cubic with level ends between."""
+    s = np.clip(s, 0.0, 1.0)
+    return s * s * (3 - 2 * s)
 
 
 def _skin_only(target: Target, where: str) -> FaceParts:
@@ -238,6 +250,11 @@ class _Frame:
         self.bite = (float(self.mouth[1]), 0.0)
         self.eyes = {"eye_left": 0.5 * (p["3.7"] + p["3.11"]), "eye_right": 0.5 * (p["3.8"] + p["3.12"])}
 
+    def move_centre(self, local: np.ndarray) -> None:
+        """Put the jaw's turning centre at ``local`` (face frame)."""
+        self.hinge_local = np.asarray(local, dtype=np.float64)
+        self.hinge = self.hinge_local @ self.axes + self.origin
+
     def local(self, points: np.ndarray) -> np.ndarray:
         return (np.asarray(points) - self.origin) @ self.axes.T
 
@@ -246,8 +263,7 @@ class _Frame:
         local = self.local(points)
         y = local[:, 1] - self.bite[1] * local[:, 2]
         band = 0.1 * self.mouth_width
-        s = np.clip((self.bite[0] + 0.5 * band - y) / band, 0.0, 1.0)
-        return s * s * (3 - 2 * s)
+        return _smoothstep((self.bite[0] + 0.5 * band - y) / band)
 
     def in_mouth(self, centre: np.ndarray) -> bool:
         """Whether a point (face frame) lies behind the lips, between the chin and the nose."""
@@ -405,36 +421,43 @@ def _sphere(points: np.ndarray, largest: float):
     return centre if 0 < radius < largest and spread < 0.2 * radius else None
 
 
-def _centre_behind_the_teeth(mesh: Mesh, lower: np.ndarray, frame: _Frame) -> None:
-    """Where the lower teeth are known, the jaw's turning centre goes behind the last of them, level
-    with the bite there (the ramus rises behind the molars; a centre in front of them would lift
-    the back molars as the jaw opens). Feature points placed on a silhouette (the jaw's corners) say
-    little about depth."""
+def _centre_behind_the_teeth(mesh: Mesh, lower: np.ndarray, frame: _Frame):
+    """Where the lower teeth are known, the jaw's turning centre behind the last of them, level with
+    the bite there (face frame), or None to keep it: the ramus rises behind the molars, and a centre
+    in front of them would lift the back molars as the jaw opens. Feature points placed on a
+    silhouette (the jaw's corners) say little about depth."""
     if not lower.any():
-        return
+        return None
     local = frame.local(mesh.vertices[lower])
     back = local[:, 2].min() - 0.25 * frame.mouth_width
     if back >= frame.hinge_local[2]:
-        return
-    level = frame.bite[0] + frame.bite[1] * local[:, 2].min()
-    frame.hinge_local = np.array([frame.hinge_local[0], level, back])
-    frame.hinge = frame.hinge_local @ frame.axes + frame.origin
+        return None
+    return np.array([frame.hinge_local[0], frame.bite[0] + frame.bite[1] * local[:, 2].min(), back])
 
 
-def _split_teeth(mesh: Mesh, role: np.ndarray, kind: np.ndarray, jaw: np.ndarray, frame: _Frame) -> None:
-    """Teeth, gums and tongue to the skull or the jaw: whole pieces by their centres (about the gap
-    between the upper and lower pieces), pieces that straddle the bite vertex by vertex."""
+def _teeth_pieces(mesh: Mesh, kind: np.ndarray, frame: _Frame):
+    """The whole pieces of teeth found by place or name (vertex ids each) and their centres (face frame)."""
     part = component_labels(mesh)
+    mouth = np.flatnonzero(kind == "rigid")
+    pieces = [mouth[part[mouth] == k] for k in np.unique(part[mouth])]
+    centres = np.array([frame.local(mesh.vertices[p].mean(axis=0)[None])[0] for p in pieces]).reshape(-1, 3)
+    return pieces, centres
+
+
+def _fitted_bite(centres: np.ndarray, frame: _Frame):
+    """The bite line through the teeth pieces' centres, or None where they are one set (all at one height)."""
+    if len(centres) >= 2 and np.ptp(centres[:, 1]) > 0.1 * frame.mouth_width:
+        return _bite_line(centres[:, 2], centres[:, 1])
+    return None
+
+
+def _split_teeth(mesh: Mesh, role: np.ndarray, kind: np.ndarray, jaw: np.ndarray, frame: _Frame, pieces,
+                 centres, *, fitted: bool) -> None:
+    """Teeth, gums and tongue to the skull or the jaw (``role``, ``jaw`` filled in): whole pieces by
+    their centres against ``frame.bite`` (``fitted`` through them), pieces that straddle the bite
+    vertex by vertex, a set of teeth alone by whether it reaches above the lips' meeting."""
     given = np.flatnonzero(kind == "given")
     jaw[given] = role[given] == _ROLE["lower_teeth"]
-    mouth = np.flatnonzero(kind == "rigid")
-    if not len(mouth):
-        return
-    pieces = [mouth[part[mouth] == k] for k in np.unique(part[mouth])]
-    centres = np.array([frame.local(mesh.vertices[p].mean(axis=0)[None])[0] for p in pieces])
-    split = len(pieces) >= 2 and np.ptp(centres[:, 1]) > 0.1 * frame.mouth_width
-    if split:
-        frame.bite = _bite_line(centres[:, 2], centres[:, 1])
     band = 0.1 * frame.mouth_width
     for piece, centre in zip(pieces, centres, strict=True):
         local = frame.local(mesh.vertices[piece])
@@ -444,14 +467,13 @@ def _split_teeth(mesh: Mesh, role: np.ndarray, kind: np.ndarray, jaw: np.ndarray
             kind[piece] = "split"
             jaw[piece] = weight
             role[piece] = np.where(weight >= 0.5, _ROLE["lower_teeth"], _ROLE["upper_teeth"])
-        elif not split:  # one set of teeth alone: upper if it reaches above the lips' meeting (the skull holds it)
-            lower = local[:, 1].max() < frame.bite[0]
-            role[piece] = _ROLE["lower_teeth" if lower else "upper_teeth"]
-            jaw[piece] = float(lower)
-        else:
+            continue
+        if fitted:
             lower = centre[1] < frame.bite[0] + frame.bite[1] * centre[2]
-            role[piece] = _ROLE["lower_teeth" if lower else "upper_teeth"]
-            jaw[piece] = float(lower)
+        else:  # one set of teeth alone: upper if it reaches above the lips' meeting (the skull holds it)
+            lower = local[:, 1].max() < frame.bite[0]
+        role[piece] = _ROLE["lower_teeth" if lower else "upper_teeth"]
+        jaw[piece] = float(lower)
 
 
 def _bite_line(z: np.ndarray, y: np.ndarray) -> tuple[float, float]:
@@ -497,10 +519,9 @@ def _skin_jaw_weight(mesh: Mesh, skin: np.ndarray, frame: _Frame, target: Target
     back = np.clip((mouth[2] - z) / (mouth[2] - hinge[2]), 0.0, 1.0)
     above = y - (mouth[1] + (hinge[1] - mouth[1]) * back)
     # Beside the mouth the jaw's full share starts a band below that line; on the lower lip, at it.
-    s = np.clip(np.abs(x - mouth[0]) / (0.5 * w), 0.0, 1.0)
     # In the middle the lips themselves are pinned (below); the jaw's full share starts under the lower lip.
     lip_bottom = frame.local_points["8.2"][1] if "8.2" in frame.local_points else mouth[1] - 0.1 * w
-    band = np.maximum(0.3 * w * s * s * (3 - 2 * s), mouth[1] - lip_bottom)
+    band = np.maximum(0.3 * w * _smoothstep(np.abs(x - mouth[0]) / (0.5 * w)), mouth[1] - lip_bottom)
     fixed = np.full(len(ids), np.nan)
     fixed[(above < -band) & (under_jaw < 0.02 * w) & (z > hinge[2] + 0.25 * depth)] = 1.0
     fixed[above > 0.1 * w] = 0.0  # the upper lip and everything above
