@@ -8,6 +8,7 @@ from conftest import shared
 
 from faceanim.errors import FileFormatError, InputError
 from faceanim.geometry import read_mesh
+from faceanim.geometry.quality import rigid_residual
 from faceanim.mpeg4 import fap_table
 from faceanim.mpeg4.fapstream import FapStream
 from faceanim.parts import face_parts, read_parts_file
@@ -26,14 +27,6 @@ def ict():
 
     target = auto_target(read_mesh(shared("ict_facekit", "obj", "generic_neutral_mesh.obj")))
     return target, face_parts(target)
-
-
-def rigid_residual(rest, moved):
-    """Worst distance left after the best rigid fit of ``rest`` onto ``moved``."""
-    a, b = rest - rest.mean(axis=0), moved - moved.mean(axis=0)
-    U, _, Vt = np.linalg.svd(a.T @ b)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    return np.linalg.norm(a @ (U @ D @ Vt) - b, axis=1).max()
 
 
 def test_ict_parts_follow_its_own_part_table(ict):
@@ -70,7 +63,7 @@ def test_the_jaw_turns_the_lower_teeth_rigidly_and_controls_land_exactly(ict):
     np.testing.assert_allclose(positions[:, ids[on_skin]], rest[ids[on_skin]] + displacements[:, on_skin], atol=1e-8)
     for t in (1, 2):
         lower, upper = positions[t, ICT_LOWER_TEETH], positions[t, ICT_UPPER_TEETH]
-        assert rigid_residual(rest[ICT_LOWER_TEETH], lower) < 1e-9
+        assert rigid_residual(rest[ICT_LOWER_TEETH], lower[None])[0] < 1e-9
         np.testing.assert_allclose(upper, rest[ICT_UPPER_TEETH], atol=1e-12)
     chin = target.points["2.1"]
     incisors = np.flatnonzero(parts.mask("lower_teeth"))

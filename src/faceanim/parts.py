@@ -42,7 +42,7 @@ from scipy.sparse.linalg import spsolve
 from .errors import FileFormatError, InputError
 from .geometry.mesh import Mesh
 from .geometry.surface import cotangent_laplacian
-from .geometry.topology import component_labels
+from .geometry.topology import component_labels, submesh
 from .mpeg4.jaw import jaw_hinge
 from .target import Target
 
@@ -501,10 +501,8 @@ def _skin_jaw_weight(mesh: Mesh, skin: np.ndarray, frame: _Frame, target: Target
     """``(S,)`` the jaw's share of each skin vertex: harmonic along the skin between the chin (1) and
     the upper lip, the ears and the neck (0)."""
     ids = np.flatnonzero(skin)
-    index_of = np.full(len(mesh.vertices), -1)
-    index_of[ids] = np.arange(len(ids))
-    tris = index_of[mesh.triangles]
-    tris = tris[(tris >= 0).all(axis=1)]
+    sub, index_of = submesh(mesh, skin)
+    tris = sub.triangles
     local = frame.local(mesh.vertices[ids])
     x, y, z = local.T
     chin, mouth, hinge = frame.chin, frame.mouth, frame.hinge_local
@@ -533,8 +531,7 @@ def _skin_jaw_weight(mesh: Mesh, skin: np.ndarray, frame: _Frame, target: Target
         fixed[pinned[pinned >= 0]] = value
     if not (fixed == 1).any():
         return np.zeros(len(ids))
-    sub = Mesh(mesh.vertices[ids], tris) if len(tris) else None
-    if sub is None:
+    if not len(tris):
         return np.nan_to_num(fixed)
     L, _ = cotangent_laplacian(sub)
     # Vertices in no skin triangle, and skin islands with no fixed vertex, hold 0.

@@ -24,6 +24,7 @@ from ..validation import as_array, as_index_array
 from .align import weighted_procrustes
 from .mesh import Mesh
 from .project import project_points
+from .topology import open_edges
 
 __all__ = ["turned_over", "turned_triangles", "rigid_residual", "edge_stretch", "signed_distance",
            "penetration_depth"]
@@ -218,9 +219,7 @@ def _on_rim(surface: Mesh, found) -> np.ndarray:
     """``(N,) bool``: whether each closest point lies on the surface's border (a corner or an edge
     of the landing triangle that belongs to no other triangle). Landings on an edge or a corner have
     exactly zero barycentric weights elsewhere (:func:`closest_point_on_triangles` sets them so)."""
-    corners = surface.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    edges, count = np.unique(np.sort(corners, axis=1), axis=0, return_counts=True)
-    rim = edges[count == 1]
+    rim = open_edges(surface.triangles)
     if not len(rim):
         return np.zeros(len(found.distances), dtype=bool)
     V = len(surface.vertices)

@@ -8,7 +8,7 @@ from scipy.sparse import csgraph
 
 from .mesh import Mesh
 
-__all__ = ["component_labels", "boundary_loops"]
+__all__ = ["component_labels", "boundary_loops", "open_edges", "submesh"]
 
 
 def component_labels(mesh: Mesh) -> np.ndarray:
@@ -28,6 +28,33 @@ def component_labels(mesh: Mesh) -> np.ndarray:
         labels.flags.writeable = False
         mesh.__dict__["_component_labels"] = labels
     return labels
+
+
+def open_edges(triangles) -> np.ndarray:
+    """``(E, 2) int64``: the edges (each row sorted) that only one triangle uses, the open border.
+
+    >>> open_edges([[0, 1, 2], [0, 2, 3]]).tolist()
+    [[0, 1], [0, 3], [1, 2], [2, 3]]
+    """
+    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    edges, count = np.unique(np.sort(t[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0, return_counts=True)
+    return edges[count == 1]
+
+
+def submesh(mesh: Mesh, vertex_mask) -> tuple[Mesh, np.ndarray]:
+    """The mesh of the vertices in ``vertex_mask (V,) bool`` and the triangles all of whose corners are
+    among them, and ``(V,) int64``: each vertex's index in it (-1 for those left out).
+
+    >>> m = Mesh([[0., 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], [[0, 1, 2], [1, 3, 2]])
+    >>> part, index = submesh(m, np.array([True, True, True, False]))
+    >>> part.triangles.tolist(), index.tolist()
+    ([[0, 1, 2]], [0, 1, 2, -1])
+    """
+    ids = np.flatnonzero(vertex_mask)
+    index = np.full(len(mesh.vertices), -1, dtype=np.int64)
+    index[ids] = np.arange(len(ids))
+    tris = index[mesh.triangles]
+    return Mesh(mesh.vertices[ids], tris[(tris >= 0).all(axis=1)]), index
 
 
 def boundary_loops(triangles) -> list[np.ndarray]:

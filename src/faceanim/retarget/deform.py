@@ -18,6 +18,7 @@ from ..errors import InputError
 from ..geometry.mesh import Mesh
 from ..geometry.project import project_points
 from ..geometry.relax import FoldRelaxer
+from ..geometry.topology import open_edges, submesh
 from ..mpeg4 import ANGLE_UNIT, fap_table
 from ..mpeg4.fapstream import FapStream, held
 from ..parts import INNER_LIP_POINTS, FaceParts
@@ -87,10 +88,7 @@ class PartsDeformer:
         if not self.on_skin.any():
             raise InputError("no control point lies on the skin; label the target's parts with --parts PARTS.json")
         skin_ids = np.flatnonzero(skin)
-        index = np.full(len(mesh.vertices), -1)
-        index[skin_ids] = np.arange(len(skin_ids))
-        tris = index[mesh.triangles]
-        skin_mesh = Mesh(mesh.vertices[skin_ids], tris[(tris >= 0).all(axis=1)])
+        skin_mesh, index = submesh(mesh, skin)
         self.rest = mesh.vertices
         self.parts = parts
         self.skin_ids = skin_ids
@@ -113,7 +111,7 @@ class PartsDeformer:
         rim = np.zeros(len(mesh.vertices), dtype=bool)
         socket_triangles = mesh.triangles[socket[mesh.triangles].all(axis=1)]
         if len(socket_triangles):
-            rim[_open_boundary(socket_triangles)] = True
+            rim[np.unique(open_edges(socket_triangles))] = True
         layers = np.flatnonzero(self.parts.mask("lid_layer"))
         hit = project_points(skin_mesh, mesh.vertices[layers])
         corners, bary = hit.corner_vertices, hit.barycentric
@@ -121,7 +119,7 @@ class PartsDeformer:
         if len(rims):
             # A socket's rim copies the opening's edge, set back and widened: it rides on the edge
             # vertex it copies (the nearest across the face), not on whatever skin is nearest in space.
-            edge = _open_boundary(skin_mesh.triangles)
+            edge = np.unique(open_edges(skin_mesh.triangles))
             across = self.parts.axes[:2]
             gap = ((mesh.vertices[rims] @ across.T)[:, None] - (skin_mesh.vertices[edge] @ across.T)[None]) ** 2
             nearest = edge[np.argmin(gap.sum(axis=2), axis=1)]
@@ -274,13 +272,6 @@ def deform_parts(target: Target, parts: FaceParts | None, control_vertices, disp
         angles = np.zeros(len(displacements))
     eyes = eye_rotations(gaze, parts) if gaze is not None else None
     return deformer(displacements, angles, eyes)
-
-
-def _open_boundary(triangles: np.ndarray) -> np.ndarray:
-    """Vertex ids on the open boundary of a triangulation (edges used by one triangle only)."""
-    edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    unique, counts = np.unique(edges, axis=0, return_counts=True)
-    return np.unique(unique[counts == 1])
 
 
 def _harmonic_fill(triangles: np.ndarray, count: int, inner, rim) -> np.ndarray:

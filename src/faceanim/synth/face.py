@@ -24,7 +24,7 @@ from scipy.sparse import csgraph
 from ..errors import InputError
 from ..geometry.mesh import Mesh
 from ..geometry.surface import BiharmonicInterpolation
-from ..geometry.topology import component_labels
+from ..geometry.topology import component_labels, submesh
 from ..target import Target
 
 __all__ = ["MuscleFace", "mirror_name", "SIDES"]
@@ -152,11 +152,7 @@ class MuscleFace:
     @cached_property
     def _skin_mesh(self) -> tuple[Mesh, np.ndarray]:
         """The skin as a mesh of its own, and each mesh vertex's index in it (-1 off the skin)."""
-        index = np.full(len(self.mesh.vertices), -1)
-        index[self.skin_ids] = np.arange(len(self.skin_ids))
-        tris = index[self.mesh.triangles]
-        tris = tris[(tris >= 0).all(axis=1)]
-        return Mesh(self.skin_vertices, tris), index
+        return submesh(self.mesh, self.skin)
 
     def _field(self, pins: dict, falloff: float = 0.0) -> np.ndarray:
         """The smoothest skin field through ``pins`` (skin index -> value), clipped to [0, 1]; with a
