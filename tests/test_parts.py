@@ -9,6 +9,7 @@ from conftest import shared
 from faceanim.errors import FileFormatError, InputError
 from faceanim.geometry import read_mesh
 from faceanim.geometry.quality import rigid_residual
+from faceanim.geometry.topology import component_labels, open_edges
 from faceanim.mpeg4 import fap_table
 from faceanim.mpeg4.fapstream import FapStream
 from faceanim.parts import face_parts, read_parts_file
@@ -193,7 +194,7 @@ def test_lips_pressed_into_the_teeth_are_kept_in_front_of_them(ict):
     for keep in (False, True):
         deformer = PartsDeformer(target, parts, ids, relax=False)
         if not keep:
-            deformer._lips = None
+            deformer.contact.sets.clear()  # the same deformer without the teeth contact
         positions = deformer(pressed, [0.0, 0.0], fit_weights=False)
         depths[keep] = penetration_depth(positions[:, lip], positions[:, teeth], local[tris])[1]
     assert depths[False] > 0.05 and depths[True] < 0.1 * depths[False], depths
@@ -257,3 +258,40 @@ def test_coincident_eye_corners_are_refused_by_name():
     p.update({"8.3": np.array([1.0, -3, 0]), "8.4": np.array([-1.0, -3, 0]), "2.1": np.array([0.0, -5, 0])})
     with pytest.raises(InputError, match="eyes have no width"):
         face_axes(p)
+
+
+def test_the_avatars_mouth_socket_spans_the_parted_lips():
+    """The default avatar's mouth is a separate socket (a fan behind the lips) and its eyes flat caps,
+    not balls: both hang from rims riding on their openings. With the lower lip let down 1.5 cm, the
+    socket's lower rim goes down with it, its upper rim stays with the upper lip and its middle hangs
+    between: the inside of the mouth has no hole."""
+    pytest.importorskip("mediapipe", reason="needs faceanim[capture] to make the default avatar")
+    from faceanim.inputs import load_target
+
+    target = load_target(None)
+    parts = face_parts(target)
+    assert not parts.mask("eye_left", "eye_right").any() and parts.mask("upper_teeth").any()
+    names = [n for n in target.points if not n.startswith("mp")]
+    ids = np.unique(target.ids(names))
+    lower = np.isin(ids, target.ids([n for n in ("2.3", "2.8", "2.9", "8.2", "8.7", "8.8") if n in target.points]))
+    down = np.zeros((2, len(ids), 3))
+    down[1, lower] = -1.5 * parts.axes[1]
+    positions = PartsDeformer(target, parts, ids, relax=False)(down, [0.0, 0.0], fit_weights=False)
+    rest = target.mesh.vertices
+    mouth = rest[target.ids(["8.3", "8.4"])].mean(axis=0)
+    lining = np.flatnonzero(parts.mask("socket"))
+    piece = component_labels(target.mesh)
+    nearest = lining[np.argmin(np.linalg.norm(rest[lining] - mouth, axis=1))]
+    socket = lining[piece[lining] == piece[nearest]]  # the mouth's, not an eye's
+    drop = -(positions[1, socket] - rest[socket]) @ parts.axes[1]
+    height = (rest[socket] - mouth) @ parts.axes[1]
+    assert drop[height < height.min() + 0.2].min() > 1.0  # the lower rim goes down with the lip
+    assert drop[height > height.max() - 0.1].max() < 0.4  # the upper rim stays up
+    mesh = target.mesh
+    in_socket = np.zeros(len(rest), dtype=bool)
+    in_socket[socket] = True
+    fan = mesh.triangles[in_socket[mesh.triangles].all(axis=1)]
+    tip = np.setdiff1d(np.unique(fan), open_edges(fan))  # the fan's centre, off its rim
+    assert len(tip) == 1
+    tip_drop = -(positions[1, tip[0]] - rest[tip[0]]) @ parts.axes[1]
+    assert 0.2 < tip_drop < 1.3, tip_drop  # the middle hangs between

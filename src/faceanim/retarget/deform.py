@@ -21,8 +21,9 @@ from ..geometry.relax import FoldRelaxer
 from ..geometry.topology import open_edges, submesh
 from ..mpeg4 import ANGLE_UNIT, fap_table
 from ..mpeg4.fapstream import FapStream, held
-from ..parts import INNER_LIP_POINTS, FaceParts
+from ..parts import FaceParts
 from ..target import Target
+from .contact import TeethContact
 from .transfer import SparseTransfer
 
 __all__ = ["PartsDeformer", "jaw_angles", "eye_rotations", "JAW_LIMITS"]
@@ -99,7 +100,7 @@ class PartsDeformer:
         self._turn_sin = np.cross(axis, r)  # (R - I) r = sin(t) a x r + (1 - cos(t)) a x (a x r)
         self._turn_cos = np.cross(axis, self._turn_sin)
         self._bind_riders(mesh, skin_mesh)
-        self._bind_lips(target)
+        self.contact = TeethContact(target, parts, skin_ids)
         self.relaxer = FoldRelaxer(skin_mesh.vertices, skin_mesh.triangles) if relax else None
 
     def _bind_riders(self, mesh: Mesh, skin_mesh: Mesh):
@@ -132,60 +133,6 @@ class PartsDeformer:
         if len(hanging) and rim[socket].any():
             self._hanging = hanging, np.flatnonzero(socket & rim), _harmonic_fill(
                 socket_triangles, len(mesh.vertices), hanging, np.flatnonzero(socket & rim))
-
-    def _bind_lips(self, target: Target):
-        """The skin near the lips' inner rims (skin-local ids) and, per rigid teeth set, its rest
-        vertices and outward normals (a KD-tree over them), for keeping the lips out of the teeth."""
-        from scipy.spatial import cKDTree
-
-        self._lips = None
-        names = [n for n in INNER_LIP_POINTS if n in target.points]
-        sets = []
-        for role, weight in (("upper_teeth", 0.0), ("lower_teeth", 1.0)):
-            ids = np.flatnonzero(self.parts.mask(role) & (self.parts.jaw_weight == weight))
-            if len(ids):
-                sets.append([weight, cKDTree(self.rest[ids]), self.rest[ids], target.mesh.vertex_normals[ids]])
-        if not names or not sets or not {"8.3", "8.4"} <= target.points.keys():
-            return
-        corners = self.rest[target.ids(["8.3", "8.4"])]
-        self._reach = 0.12 * np.linalg.norm(corners[0] - corners[1])
-        rims = self.rest[target.ids(names)]
-        near = cKDTree(rims).query(self.rest[self.skin_ids], distance_upper_bound=self._reach)[0] < np.inf
-        lips = np.flatnonzero(near)
-        for teeth in sets:  # how deep each lip vertex already sits at rest (a lip resting on the teeth)
-            teeth.append(np.maximum(self._depth(self.rest[self.skin_ids[lips]], teeth)[0], 0.0))
-        self._lips = lips, sets
-
-    def _depth(self, points: np.ndarray, teeth) -> tuple:
-        """How far ``points (..., 3)`` (in the teeth's rest frame) lie behind the teeth's surface, their
-        distance to it, and the outward normal there."""
-        _, tree, surface, normals = teeth[:4]
-        distance, nearest = tree.query(points.reshape(-1, 3))
-        distance, nearest = distance.reshape(points.shape[:-1]), nearest.reshape(points.shape[:-1])
-        return ((surface[nearest] - points) * normals[nearest]).sum(axis=-1), distance, normals[nearest]
-
-    def _lips_out_of_teeth(self, skin_field: np.ndarray, angles: np.ndarray) -> None:
-        """Push lip vertices that went behind the teeth's surface back in front of it (in place)."""
-        if self._lips is None:
-            return
-        lips, sets = self._lips
-        h, a = self.parts.hinge, self.parts.axes[0]
-        for teeth in sets:
-            weight, at_rest = teeth[0], teeth[4]
-            p = self.rest[self.skin_ids[lips]][None] + skin_field[:, lips]  # (T, N, 3)
-            turn = weight * np.asarray(angles)[:, None, None]
-            r = p - h
-            # In the teeth's own (rest) frame: undo their turn about the hinge.
-            cos, sin = np.cos(turn), np.sin(turn)
-            local = h + r * cos - np.cross(a, r) * sin + a * (r @ a)[..., None] * (1 - cos)
-            depth, distance, normal = self._depth(local, teeth)
-            inside = (depth > at_rest + 1e-9) & (distance < self._reach)
-            if not inside.any():
-                continue
-            push = np.where(inside, depth - at_rest + 0.01 * self._reach, 0.0)[..., None] * normal
-            # Back to the posed frame: the push turns with the teeth.
-            pushed = push * cos + np.cross(a, push) * sin + a * (push @ a)[..., None] * (1 - cos)
-            skin_field[:, lips] += pushed
 
     def jaw_turn(self, angles, vertices=None) -> np.ndarray:
         """``(T, N, 3)`` the ``vertices`` (default: all) turned fully about the hinge by ``angles (T,)``."""
@@ -233,7 +180,7 @@ class PartsDeformer:
         controls = self.controls[self.on_skin]
         residual = displacements[:, self.on_skin] - moved[:, controls]
         skin_field = moved[:, self.skin_ids] + self.spread(residual)
-        self._lips_out_of_teeth(skin_field, angles)
+        self.contact(skin_field, angles)
         if self.relaxer is not None:
             relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field)
             skin_field = relaxed - self.rest[self.skin_ids]
