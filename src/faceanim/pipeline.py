@@ -266,26 +266,19 @@ def _preview(path, animation, target, progress, *, source_frames=None, size: int
             write(frame)
 
 
-def _read_parts(path):
-    """The labels of a ``--parts PARTS.json``, read before any work (None without one)."""
-    from .parts import read_parts_file
+def _ready_target(target, mesh_path, points, fdp, parts, progress):
+    """The target (a ready one, or loaded from its files), its parts and its unit (metres per model
+    unit), all told before any long work: a bad ``--parts`` file, parts that cannot be told apart or a
+    face of no human size are refused at once, naming the target."""
+    from .parts import face_parts, read_parts_file
 
-    return None if path is None else read_parts_file(path)
-
-
-def _target_parts(target, labels, source: str):
-    """The target's parts, told apart before any long work, so a target whose parts cannot be told
-    apart is refused at once."""
-    from .parts import face_parts
-
-    return face_parts(target, labels=labels, source=source)
-
-
-def _target_name(mesh_path, given) -> str:
-    """What messages call the target: its file, a target handed in ready, or the default avatar."""
+    labels = None if parts is None else read_parts_file(parts)
     if mesh_path is not None:
-        return str(mesh_path)
-    return "the target" if given is not None else "the avatar"
+        name = str(mesh_path)
+    else:
+        name = "the target" if target is not None else "the avatar"
+    target = target or load_target(mesh_path, points=points, fdp=fdp, progress=progress)
+    return target, face_parts(target, labels=labels, source=name), target_unit(target, name)
 
 
 def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview=None, head_motion=False,
@@ -302,12 +295,8 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     output = _check_output(output)
     _check_extra_outputs(obj_sequence, csv)
     shown = as_progress(progress)
-    labels = _read_parts(parts)
     stream = read_fap(fap_path)
-    name = _target_name(target_mesh, target)
-    target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
-    pieces = _target_parts(target, labels, name)
-    unit = target_unit(target, name)
+    target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
     shown.status(f"playing {len(stream)} frames of FAPs on the target ({len(target.mesh.vertices):,} vertices)")
     animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
     shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
@@ -346,11 +335,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     if neutral is not None and not isinstance(parse_neutral(str(neutral), 2**62), tuple):
         raise InputError("animate takes the neutral as FRAME or START:END")  # said before any work is done
     shown = as_progress(progress)
-    labels = _read_parts(parts)
-    name = _target_name(target_mesh, target)
-    target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
-    pieces = _target_parts(target, labels, name)
-    unit = target_unit(target, name)
+    target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
     recorded = track_video(video, progress=shown)
     motion = motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
