@@ -2,7 +2,8 @@
 as CSV."""
 
 from .curves import write_au_csv, write_fap_csv
-from .gltf import MorphSet, morphs_from_animation, write_glb
+from .gltf import write_glb
+from .morphs import MorphSet, morphs_from_animation
 from .objseq import write_obj_sequence
 
 __all__ = ["MorphSet", "morphs_from_animation", "write_au_csv", "write_fap_csv", "write_glb", "write_obj_sequence"]

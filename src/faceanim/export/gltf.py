@@ -2,9 +2,9 @@
 
 An animation travels as morph targets (shapes added to the rest mesh) and per-frame weights, which
 Blender imports as shape keys with an action and three.js as morph targets with an animation clip.
-:func:`morphs_from_animation` finds few shapes that reproduce every frame (a truncated SVD of the
-displacements, exact to a stated tolerance); named shapes (action units, visemes) can be written
-directly for a viewer to drive as sliders.
+:func:`~faceanim.export.morphs.morphs_from_animation` finds few shapes that reproduce every frame
+(principal shapes of the displacements, exact to a stated tolerance); named shapes (action units,
+visemes) can be written directly for a viewer to drive as sliders.
 
 What real clients play decides two choices:
 
@@ -25,185 +25,18 @@ from __future__ import annotations
 
 import io
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..atomic import atomic_output
-from ..geometry.animation import Animation
 from ..geometry.mesh import Mesh
 from ..geometry.meshio import PARTS_EXTRA, SOURCE_VERTEX_ATTRIBUTE, UNIT_EXTRA
-from ..validation import as_array
+from .morphs import MorphSet
 
-__all__ = ["MorphSet", "morphs_from_animation", "write_glb"]
+__all__ = ["write_glb"]
 
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
 _FLOAT, _UNSIGNED_INT = 5126, 5125
-_WEIGHT_SLACK = 1e-9  # weights this far outside [0, 1] are rounding, and are clipped
-_BLOCK = 3 * 512  # displacement columns (3 per vertex) handled at once: memory stays bounded by T x _BLOCK
-
-
-@dataclass(frozen=True, eq=False)
-class MorphSet:
-    """Morph targets of a mesh and, optionally, their weights over time.
-
-    ``targets (K, V, 3)`` displacements (model units), ``names`` (K,), ``weights (T, K)`` within
-    [0, 1] or None (a still mesh with sliders), ``fps`` for the weights, ``default_weights (K,)``
-    within [0, 1], the weights a viewer shows without animation (zeros when not given: the rest
-    shape). Weights outside [0, 1] are refused: glTF clients clamp them (Blender's importer to the
-    slider range [0, 1]), so they would not play as written.
-    """
-
-    targets: np.ndarray
-    names: tuple[str, ...]
-    weights: np.ndarray | None = None
-    fps: float = 25.0
-    max_error: float = field(default=0.0)
-    default_weights: np.ndarray | None = None
-
-    def __post_init__(self):
-        targets = as_array(self.targets, "targets", shape=("K", "V", 3))
-        names = tuple(self.names)
-        if len(names) != len(targets):
-            raise ValueError(f"names must give one name per target ({len(targets)}), got {len(names)}")
-        if self.weights is not None:
-            weights = as_array(self.weights, "weights", shape=("T", len(targets)), min_length=1)
-            object.__setattr__(self, "weights", _unit_interval(weights, "weights", names))
-        if self.default_weights is not None:
-            weights = as_array(self.default_weights, "default_weights", shape=(len(targets),))
-            object.__setattr__(self, "default_weights", _unit_interval(weights, "default_weights", names))
-        object.__setattr__(self, "targets", targets)
-        object.__setattr__(self, "names", names)
-
-
-def _unit_interval(weights: np.ndarray, name: str, names: tuple[str, ...]) -> np.ndarray:
-    """``weights`` clipped to [0, 1] when they are outside it by rounding only; else a ValueError that
-    names the first weight outside."""
-    outside = (weights < -_WEIGHT_SLACK) | (weights > 1 + _WEIGHT_SLACK)
-    if outside.any():
-        at = np.argwhere(outside)[0]
-        where = f"frame {at[0]}, target {names[at[-1]]!r}" if weights.ndim == 2 else f"target {names[at[0]]!r}"
-        raise ValueError(f"{name} must lie within [0, 1] (glTF clients clamp morph weights), got "
-                         f"{weights[tuple(at)]:g} at {where}; split a signed shape into two (see "
-                         "morphs_from_animation)")
-    return np.clip(weights, 0.0, 1.0)
-
-
-def morphs_from_animation(animation: Animation, *, max_modes: int = 64, tolerance: float = 1e-4) -> MorphSet:
-    """Few morph targets, with weights in [0, 1], that replay ``animation`` (its mesh's vertices are the rest).
-
-    The displacements of all frames, a ``(T, 3V)`` matrix ``D``, are factorised once, through the
-    eigenvectors of the smaller of its two Gram matrices (``D D^T`` or ``D^T D``): the first ``k``
-    modes replay ``D`` as its orthogonal projection onto them (the truncated SVD). The number of
-    modes ``k`` (at most ``max_modes``) is found by bisection on the worst per-vertex error over all
-    frames, evaluated exactly for each candidate: ``k`` modes keep it within ``tolerance`` times the
-    mesh's size (the largest side of its bounding box) and, unless ``k`` is 1, ``k - 1`` do not; or
-    ``k = max_modes`` when even that many do not. (The error need not fall at every added mode, so
-    a smaller count passing may exist below a failing one; bisection does not look there.) Each mode
-    is written as up to two targets, its positive part and its negated negative part (``shape03+``,
-    ``shape03-``), with weights ``max(w, 0)`` and ``max(-w, 0)``
-    scaled to peak at 1; a mode whose weights never change sign gives one.
-
-    Returns
-    -------
-    MorphSet
-        ``targets`` in model units, ``weights (T, K)`` within [0, 1]; ``max_error`` is the worst
-        distance (model units), over every frame and vertex, between the animation and what these
-        targets replay (in float64; the file's float32 adds about 1e-7 of the mesh's size).
-
-    Examples
-    --------
-    >>> from faceanim.geometry import Mesh
-    >>> mesh = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
-    >>> lift = np.sin(np.arange(20) / 3)[:, None, None] * [[0, 0, 0], [0, 0, 0], [0, 0, 0.5]]
-    >>> morphs = morphs_from_animation(Animation(mesh, mesh.vertices + lift, 25.0))
-    >>> morphs.names, float(morphs.weights.min()), float(morphs.weights.max())
-    (('shape00+', 'shape00-'), 0.0, 1.0)
-    """
-    if int(max_modes) != max_modes or max_modes < 1:
-        raise ValueError(f"max_modes must be a whole number of at least 1, got {max_modes}")
-    if not np.isfinite(tolerance) or tolerance < 0:
-        raise ValueError(f"tolerance must be a non-negative number, got {tolerance}")
-    rest = animation.mesh.vertices.ravel()
-    frames = animation.positions.reshape(len(animation), -1)
-    size = np.ptp(animation.mesh.vertices, axis=0).max() or 1.0
-    curves, shapes = _modes(frames, rest, int(max_modes))
-    if not len(shapes):
-        return MorphSet(np.zeros((0, len(rest) // 3, 3)), (), np.zeros((len(frames), 0)), animation.fps)
-    errors = {}
-
-    def error(k: int) -> float:
-        if k not in errors:
-            errors[k] = _worst_error(frames, rest, curves[:, :k], shapes[:k])
-        return errors[k]
-
-    limit = tolerance * size
-    low, high = 0, len(shapes)  # error(high) is within the limit (or high is every mode there is)
-    if error(high) <= limit:
-        while high - low > 1:
-            middle = (low + high) // 2
-            low, high = (low, middle) if error(middle) <= limit else (middle, high)
-    targets, weights, names = [], [], []
-    for j in range(high):
-        for sign, suffix in ((1.0, "+"), (-1.0, "-")):
-            part = np.maximum(sign * curves[:, j], 0.0)
-            peak = part.max()
-            if peak > 0:
-                targets.append(sign * peak * shapes[j])
-                weights.append(part / peak)
-                names.append(f"shape{j:02d}{suffix}")
-    return MorphSet(np.reshape(targets, (len(targets), -1, 3)), tuple(names), np.transpose(weights), animation.fps,
-                    error(high))
-
-
-def _column_blocks(n: int):
-    return (slice(start, min(start + _BLOCK, n)) for start in range(0, n, _BLOCK))
-
-
-def _modes(frames: np.ndarray, rest: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """Time curves ``(T, K)`` and shapes ``(K, 3V)`` of the first ``K <= count`` SVD modes of the
-    displacements ``frames - rest``, strongest first; ``curves @ shapes`` is the displacements'
-    projection onto the modes. Modes of numerically zero strength are left out. Curve values at
-    rounding level (1e-9 of the curve's peak: frames at rest) are set to zero, so that their sign
-    does not split a mode; the error is measured after that."""
-    T, n = frames.shape
-    if T <= n:  # the T x T Gram matrix, accumulated over column blocks
-        gram = np.zeros((T, T))
-        for block in _column_blocks(n):
-            d = frames[:, block] - rest[block]
-            gram += d @ d.T
-    else:
-        d = frames - rest
-        gram = d.T @ d
-    strength, vectors = np.linalg.eigh(gram)
-    strength, vectors = strength[::-1], vectors[:, ::-1]
-    kept = min(count, int(np.sum(strength > max(strength[0], 0.0) * max(T, n) * np.finfo(float).eps)))
-    vectors = np.ascontiguousarray(vectors[:, :kept])
-    if T <= n:
-        curves = vectors
-        shapes = np.empty((kept, n))
-        for block in _column_blocks(n):
-            shapes[:, block] = vectors.T @ (frames[:, block] - rest[block])
-    else:
-        curves, shapes = d @ vectors, np.ascontiguousarray(vectors.T)
-    peak = np.abs(curves).max(axis=0, initial=0.0)
-    curves = np.where(np.abs(curves) <= 1e-9 * peak, 0.0, curves)
-    return curves, shapes
-
-
-def _worst_error(frames: np.ndarray, rest: np.ndarray, curves: np.ndarray, shapes: np.ndarray) -> float:
-    """The largest per-vertex distance, over all frames, between ``frames`` and ``rest + curves @ shapes``."""
-    worst = 0.0
-    for block in _column_blocks(frames.shape[1]):
-        residual = frames[:, block] - rest[block]
-        if len(shapes):
-            residual -= curves @ shapes[:, block]
-        residual *= residual
-        squared = residual[:, 0::3] + residual[:, 1::3] + residual[:, 2::3]
-        worst = max(worst, float(squared.max()))
-    return math.sqrt(worst)
-
-
 class _Buffer:
     """Collects binary data and the glTF views and accessors that point into it."""
 

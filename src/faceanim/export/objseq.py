@@ -31,7 +31,7 @@ def write_obj_sequence(folder, animation: Animation, *, stem: str = "frame") -> 
     try:
         if textured:
             write_material(work, "face", mesh.texture)
-        for name, positions in zip(names, animation.positions, strict=True):
+        for name, positions in zip(names, animation.frames(), strict=True):
             (work / name).write_text(obj_text(mesh.with_vertices(positions), material="face" if textured else None))
         os.chmod(work, 0o777 & ~_umask())
         if folder.exists():

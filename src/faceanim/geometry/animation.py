@@ -1,31 +1,113 @@
-"""`Animation`: a mesh and its vertex positions per frame."""
+"""`Animation`: a mesh and its vertex positions per frame, held or made on demand.
+
+A long performance on a dense head is gigabytes of positions (26,000 vertices take 0.6 MB a frame),
+so an animation that comes out of a deformer is not held: it is a function that makes any run of
+frames, and every consumer (the morph compression, a preview, an OBJ sequence) reads it in chunks.
+What that costs in memory is one chunk, whatever the length.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
 from ..validation import as_array
 from .mesh import Mesh
 
-__all__ = ["Animation"]
+__all__ = ["Animation", "FrameSource"]
+
+FrameSource = Callable[[int, int], np.ndarray]
+"""``frames(start, stop)`` -> positions ``(stop - start, V, 3)`` float64 of frames ``start .. stop - 1``."""
+
+CHUNK = 32  # frames made at once when streaming: a few tens of MB on a dense head
 
 
-@dataclass(frozen=True, eq=False)
 class Animation:
-    """``mesh`` (its own vertices are the rest pose), ``positions (T, V, 3)`` float64 and ``fps``."""
+    """``mesh`` (its own vertices are the rest pose), positions ``(T, V, 3)`` float64 (model units) and ``fps``.
 
-    mesh: Mesh
-    positions: np.ndarray
-    fps: float
+    ``Animation(mesh, positions, fps)`` holds the positions given (copied, read-only);
+    :meth:`streamed` makes them on demand from a :data:`FrameSource`, so that memory does not grow with
+    the number of frames. Read them with :meth:`chunks` or :meth:`frames`; :attr:`positions` makes
+    them all at once (for short animations: it costs ``T x V x 24`` bytes).
 
-    def __post_init__(self):
-        positions = as_array(self.positions, "positions", shape=("T", len(self.mesh.vertices), 3), min_length=1)
-        if not np.isfinite(self.fps) or self.fps <= 0:
-            raise ValueError(f"fps must be positive, got {self.fps}")
-        object.__setattr__(self, "positions", positions)
-        object.__setattr__(self, "fps", float(self.fps))
+    >>> mesh = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    >>> rise = Animation.streamed(mesh, lambda a, b: mesh.vertices + np.arange(a, b)[:, None, None], 5, 25.0)
+    >>> len(rise), [len(c) for c in rise.chunks(2)], float(rise.positions[4, 0, 0])
+    (5, [2, 2, 1], 4.0)
+    """
+
+    __slots__ = ("mesh", "fps", "_length", "_held", "_source")
+
+    def __init__(self, mesh: Mesh, positions, fps: float):
+        held = as_array(positions, "positions", shape=("T", len(mesh.vertices), 3), min_length=1).copy()
+        held.flags.writeable = False
+        self._init(mesh, len(held), fps, held, None)
+
+    @classmethod
+    def streamed(cls, mesh: Mesh, frames: FrameSource, length: int, fps: float) -> Animation:
+        """An animation of ``length`` frames whose positions ``frames(start, stop)`` makes when read."""
+        if int(length) != length or length < 1:
+            raise ValueError(f"length must be a whole number of at least 1, got {length}")
+        if not callable(frames):
+            raise TypeError(f"frames must be a function (start, stop) -> positions, got {type(frames).__name__}")
+        animation = cls.__new__(cls)
+        animation._init(mesh, int(length), fps, None, frames)
+        return animation
+
+    def _init(self, mesh, length, fps, held, source) -> None:
+        if not isinstance(mesh, Mesh):
+            raise TypeError(f"mesh must be a Mesh, got {type(mesh).__name__}")
+        if not np.isfinite(fps) or fps <= 0:
+            raise ValueError(f"fps must be positive, got {fps}")
+        for name, value in (("mesh", mesh), ("fps", float(fps)), ("_length", length), ("_held", held),
+                            ("_source", source)):
+            object.__setattr__(self, name, value)
+
+    def __setattr__(self, name, value):
+        raise AttributeError(f"an Animation is immutable; {name} cannot be set")
 
     def __len__(self) -> int:
-        return len(self.positions)
+        return self._length
+
+    @property
+    def is_streamed(self) -> bool:
+        """True when the positions are made on demand rather than held."""
+        return self._held is None
+
+    def chunk(self, start: int, stop: int) -> np.ndarray:
+        """Positions ``(stop - start, V, 3)`` of frames ``start .. stop - 1``."""
+        if not 0 <= start < stop <= self._length:
+            raise IndexError(f"frames {start}:{stop} are outside the animation's 0:{self._length}")
+        if self._held is not None:
+            return self._held[start:stop]
+        made = np.asarray(self._source(start, stop), dtype=np.float64)
+        if made.shape != (stop - start, len(self.mesh.vertices), 3):
+            raise ValueError(f"the frame source made shape {made.shape} for frames {start}:{stop}, expected "
+                             f"{(stop - start, len(self.mesh.vertices), 3)}")
+        return made
+
+    def chunks(self, size: int = CHUNK) -> Iterator[np.ndarray]:
+        """Positions in runs of ``size`` frames (the last may be shorter), first to last."""
+        if int(size) != size or size < 1:
+            raise ValueError(f"size must be a whole number of at least 1, got {size}")
+        for start in range(0, self._length, int(size)):
+            yield self.chunk(start, min(start + int(size), self._length))
+
+    def frames(self) -> Iterator[np.ndarray]:
+        """Positions ``(V, 3)`` frame by frame."""
+        for chunk in self.chunks():
+            yield from chunk
+
+    @property
+    def positions(self) -> np.ndarray:
+        """All positions ``(T, V, 3)``, read-only; a streamed animation makes them all, every time asked."""
+        if self._held is not None:
+            return self._held
+        whole = np.concatenate(list(self.chunks()))
+        whole.flags.writeable = False
+        return whole
+
+    def map(self, change: Callable[[int, int, np.ndarray], np.ndarray]) -> Animation:
+        """A streamed animation whose frames are ``change(start, stop, positions)`` of these."""
+        return Animation.streamed(self.mesh, lambda a, b: change(a, b, self.chunk(a, b)), self._length, self.fps)

@@ -10,7 +10,7 @@ from ..mpeg4.fapstream import FapStream, held
 from ..mpeg4.jaw import JAW_CARRIED, jaw_hinge, jaw_swing
 from ..parts import FaceParts
 from ..target import Target
-from .deform import deform_parts
+from .deform import parts_frames
 
 __all__ = ["fap_displacements", "animate_faps", "turn_head"]
 
@@ -61,7 +61,7 @@ def head_rotations(stream: FapStream) -> np.ndarray:
 
 def animate_faps(stream: FapStream, target: Target, *, head_motion: bool = False, pivot=None,
                  parts: FaceParts | None = None) -> Animation:
-    """The target animated by ``stream``.
+    """The target animated by ``stream``, streamed (its frames are made as they are read).
 
     Feature-point displacements (in the target's FAPU) move the head part by part
     (:class:`~.deform.PartsDeformer`: the jaw turned about its hinge, the rest spread by surface-aware
@@ -79,11 +79,13 @@ def animate_faps(stream: FapStream, target: Target, *, head_motion: bool = False
     displacements = np.concatenate([moving, np.zeros((len(stream), len(still), 3))], axis=1)
     ids = target.ids(controls)
     unique, first = np.unique(ids, return_index=True)  # two names on one vertex: keep the first
-    positions = deform_parts(target, parts, unique, displacements[:, first], stream)
+    animation = Animation.streamed(target.mesh, parts_frames(target, parts, unique, displacements[:, first], stream),
+                                   len(stream), stream.fps)
     if head_motion:
         centre = target.mesh.vertices[target.ids(list(target.points))].mean(axis=0) if pivot is None else pivot
-        positions = turn_head(positions, head_rotations(stream), centre)
-    return Animation(target.mesh, positions, stream.fps)
+        rotations = head_rotations(stream)
+        animation = animation.map(lambda a, b, positions: turn_head(positions, rotations[a:b], centre))
+    return animation
 
 
 def turn_head(positions: np.ndarray, rotations: np.ndarray, centre) -> np.ndarray:

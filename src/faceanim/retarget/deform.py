@@ -26,7 +26,7 @@ from ..target import Target
 from .contact import TeethContact
 from .transfer import SparseTransfer
 
-__all__ = ["PartsDeformer", "jaw_angles", "eye_rotations", "JAW_LIMITS"]
+__all__ = ["PartsDeformer", "parts_frames", "deform_parts", "jaw_angles", "eye_rotations", "JAW_LIMITS"]
 
 JAW_LIMITS = (-0.05, 0.6)  # radians: a little closing past rest, about 34 degrees open
 GAZE_LIMITS = (0.6, 0.45)  # radians of yaw and pitch: about as far as eyes turn (35 and 25 degrees)
@@ -162,18 +162,25 @@ class PartsDeformer:
         weight[self.skin_ids] = np.clip(weight[self.skin_ids] + self.spread.operator @ change, 0.0, 1.0)
         return weight
 
-    def __call__(self, displacements, angles, eyes=None, *, fit_weights: bool = True,
-                 chunk: int = 32) -> np.ndarray:
-        """Positions ``(T, V, 3)``; the work goes ``chunk`` frames at a time, so what it holds besides
-        the output does not grow with the length of the motion."""
+    def __call__(self, displacements, angles, eyes=None, *, fit_weights: bool = True) -> np.ndarray:
+        """Positions ``(T, V, 3)``, all at once (see :meth:`source` for a long motion)."""
+        return self.source(displacements, angles, eyes, fit_weights=fit_weights)(0, len(displacements))
+
+    def source(self, displacements, angles, eyes=None, *, fit_weights: bool = True):
+        """A :data:`~faceanim.geometry.animation.FrameSource`: ``frames(start, stop)`` gives the positions
+        ``(stop - start, V, 3)`` of those frames. Frames are independent once the jaw weight is fitted
+        (over all frames, from the control points only), so any run of them is made on its own and
+        what is held does not grow with the length of the motion beyond the control points' motion."""
         displacements = np.asarray(displacements, dtype=np.float64)
         angles = np.asarray(angles, dtype=np.float64)
+        eyes = None if eyes is None else np.asarray(eyes, dtype=np.float64)
         weight = self.fitted_jaw_weight(displacements, angles) if fit_weights else self.parts.jaw_weight
-        out = np.empty((len(displacements), len(self.rest), 3))
-        for start in range(0, len(displacements), chunk):
-            at = slice(start, start + chunk)
-            out[at] = self._frames(displacements[at], angles[at], None if eyes is None else eyes[at], weight)
-        return out
+
+        def frames(start: int, stop: int) -> np.ndarray:
+            at = slice(start, stop)
+            return self._frames(displacements[at], angles[at], None if eyes is None else eyes[at], weight)
+
+        return frames
 
     def _frames(self, displacements, angles, eyes, weight) -> np.ndarray:
         moved = self.jaw_turn(angles) * weight[None, :, None]  # (T, V, 3)
@@ -202,11 +209,12 @@ class PartsDeformer:
         return moved
 
 
-def deform_parts(target: Target, parts: FaceParts | None, control_vertices, displacements,
-                 gaze: FapStream | None = None) -> np.ndarray:
-    """``(T, V, 3)`` positions of ``target`` moved by its control vertices' ``displacements (T, K, 3)``,
-    part by part: the jaw's turn read from the chin (feature point 2.1, when it is a control vertex),
-    the eyeballs turned by ``gaze``'s FAPs when given. ``parts`` defaults to the target's own."""
+def parts_frames(target: Target, parts: FaceParts | None, control_vertices, displacements,
+                 gaze: FapStream | None = None):
+    """A :data:`~faceanim.geometry.animation.FrameSource` of ``target`` moved by its control vertices'
+    ``displacements (T, K, 3)``, part by part: the jaw's turn read from the chin (feature point 2.1,
+    when it is a control vertex), the eyeballs turned by ``gaze``'s FAPs when given. ``parts``
+    defaults to the target's own."""
     from ..parts import face_parts
 
     parts = face_parts(target) if parts is None else parts
@@ -218,7 +226,13 @@ def deform_parts(target: Target, parts: FaceParts | None, control_vertices, disp
     else:
         angles = np.zeros(len(displacements))
     eyes = eye_rotations(gaze, parts) if gaze is not None else None
-    return deformer(displacements, angles, eyes)
+    return deformer.source(displacements, angles, eyes)
+
+
+def deform_parts(target: Target, parts: FaceParts | None, control_vertices, displacements,
+                 gaze: FapStream | None = None) -> np.ndarray:
+    """``(T, V, 3)`` positions, all at once, of :func:`parts_frames`."""
+    return parts_frames(target, parts, control_vertices, displacements, gaze)(0, len(displacements))
 
 
 def _harmonic_fill(triangles: np.ndarray, count: int, inner, rim) -> np.ndarray:

@@ -19,7 +19,7 @@ from ..mpeg4.fapstream import FapStream
 from ..parts import FaceParts
 from ..target import Target
 from .decode import turn_head
-from .deform import deform_parts
+from .deform import parts_frames
 
 __all__ = ["animate_motion", "shared_points", "MINIMUM_SHARED_POINTS"]
 
@@ -37,7 +37,7 @@ def shared_points(motion: Motion, target: Target) -> tuple[str, ...]:
 def animate_motion(motion: Motion, target: Target, *, head_motion: bool = False, pivot=None,
                    minimum_points: int = MINIMUM_SHARED_POINTS, parts: FaceParts | None = None,
                    gaze: FapStream | None = None) -> Animation:
-    """The target moved by ``motion``.
+    """The target moved by ``motion``, streamed (its frames are made as they are read).
 
     Displacements are carried from the motion's head frame into the target's by the similarity that
     best maps the motion's neutral points onto the target's (rotation and one scale, over all shared
@@ -64,12 +64,14 @@ def animate_motion(motion: Motion, target: Target, *, head_motion: bool = False,
     source = motion.neutral[motion.index(names)]
     carry = weighted_procrustes(source, target.mesh.vertices[ids])[:3, :3]
     displacements = _held(motion.displacements[:, motion.index(names)], motion.valid) @ carry.T
-    positions = deform_parts(target, parts, ids, displacements, gaze)
+    animation = Animation.streamed(target.mesh, parts_frames(target, parts, ids, displacements, gaze), len(motion),
+                                   motion.fps)
     if head_motion:
         centre = target.mesh.vertices[ids].mean(axis=0) if pivot is None else pivot
         turn = carry / np.cbrt(np.linalg.det(carry))  # the carry's rotation: the head turns in the target's axes
-        positions = turn_head(positions, turn @ relative_head_rotations(motion) @ turn.T, centre)
-    return Animation(target.mesh, positions, motion.fps)
+        rotations = turn @ relative_head_rotations(motion) @ turn.T
+        animation = animation.map(lambda a, b, positions: turn_head(positions, rotations[a:b], centre))
+    return animation
 
 
 def _held(displacements: np.ndarray, valid: np.ndarray) -> np.ndarray:

@@ -1,0 +1,124 @@
+"""Peak memory of `encode`, `animate` and `decode` against the video's length: 10 s, 60 s and 5 minutes.
+
+    python3 benchmarks/memory_length.py [--lengths 10,60,300] [--baseline OTHER_CHECKOUT/src]
+
+The videos are d6 (a 33.6 s, 480x480, 30 fps performance from ../shared/data/videos) played forwards
+and backwards until the length is reached, written once into a cache folder (the system's temporary
+folder; ``--work`` to choose). Each job is the README's command onto the ICT-FaceKit head, run as a
+fresh process under ``/usr/bin/time``, which reports its peak resident memory:
+
+- ``faceanim encode VIDEO -o x.fap``
+- ``faceanim animate VIDEO --target ICT -o x.glb``
+- ``faceanim decode x.fap --target ICT -o y.glb``
+
+The goal (issue 20): flat in length, and at most 1.5 GB for ``animate`` at any length.
+``--baseline`` runs the same jobs with another checkout's ``src`` first on ``PYTHONPATH`` (the code
+before a change), side by side in the same run. Writes ``benchmarks/results/memory_length.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from report import publish  # noqa: E402
+
+DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+SOURCE = DATA / "videos" / "d6.mp4"
+TARGET = DATA / "ict_facekit" / "obj" / "generic_neutral_mesh.obj"
+GOAL_GB = 1.5
+
+
+def looped_video(seconds: int, folder: Path) -> Path:
+    """d6 forwards, backwards, forwards... to ``seconds`` (at its 30 fps), as H.264; made once."""
+    import av
+    import numpy as np
+
+    path = folder / f"d6_loop_{seconds}s.mp4"
+    if path.exists():
+        return path
+    with av.open(str(SOURCE)) as container:
+        stream = container.streams.video[0]
+        fps = float(stream.average_rate)
+        frames = [frame.to_ndarray(format="rgb24") for frame in container.decode(stream)]
+    order = np.r_[np.arange(len(frames)), np.arange(len(frames) - 2, 0, -1)]
+    total = int(round(seconds * fps))
+    partial = path.with_suffix(".partial.mp4")
+    with av.open(str(partial), mode="w") as out:
+        video = out.add_stream("libx264", rate=round(fps))
+        video.width, video.height, video.pix_fmt = frames[0].shape[1], frames[0].shape[0], "yuv420p"
+        for t in range(total):
+            for packet in video.encode(av.VideoFrame.from_ndarray(frames[order[t % len(order)]], format="rgb24")):
+                out.mux(packet)
+        for packet in video.encode():
+            out.mux(packet)
+    partial.replace(path)
+    return path
+
+
+def peak(command: list[str], src: str | None) -> tuple[float, float]:
+    """(peak resident memory in GB, wall seconds) of ``command`` run under /usr/bin/time."""
+    env = dict(os.environ)
+    if src is not None:
+        env["PYTHONPATH"] = src + os.pathsep + env.get("PYTHONPATH", "")
+    with tempfile.NamedTemporaryFile("r", suffix=".time") as report:
+        done = subprocess.run(["/usr/bin/time", "-f", "%M %e", "-o", report.name, sys.executable, "-m", "faceanim.cli",
+                               *command], env=env, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise SystemExit(f"{' '.join(command)} failed:\n{done.stderr}")
+        kilobytes, seconds = report.read().split()[-2:]
+    return int(kilobytes) / 1024**2, float(seconds)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--lengths", default="10,60,300", help="video lengths in seconds (default 10,60,300)")
+    parser.add_argument("--baseline", metavar="SRC", help="another checkout's src folder, run side by side")
+    parser.add_argument("--work", default=str(Path(tempfile.gettempdir()) / "faceanim-memory"),
+                        help="where the looped videos and outputs go")
+    args = parser.parse_args()
+    if not SOURCE.exists() or not TARGET.exists():
+        raise SystemExit(f"needs {SOURCE} and {TARGET} (../shared/data)")
+    work = Path(args.work)
+    work.mkdir(parents=True, exist_ok=True)
+    lengths = [int(x) for x in args.lengths.split(",")]
+    versions = [("this checkout", None)] + ([("baseline", args.baseline)] if args.baseline else [])
+    rows = []
+    for seconds in lengths:
+        video = looped_video(seconds, work)
+        for name, src in versions:
+            tag = f"{seconds}s_{'base' if src else 'this'}"
+            fap, glb, decoded = (work / f"{tag}.fap", work / f"{tag}.glb", work / f"{tag}_decoded.glb")
+            jobs = (("encode", ["encode", str(video), "-o", str(fap)]),
+                    ("animate", ["animate", str(video), "--target", str(TARGET), "-o", str(glb)]),
+                    ("decode", ["decode", str(fap), "--target", str(TARGET), "-o", str(decoded)]))
+            for job, command in jobs:
+                gigabytes, wall = peak(command, src)
+                rows.append((name, job, seconds, gigabytes, wall))
+                print(f"{name:<14} {job:<8} {seconds:>5} s  {gigabytes:6.2f} GB  {wall:7.1f} s", flush=True)
+    lines = ["# Peak memory against the video's length", "",
+             f"`python3 benchmarks/memory_length.py --lengths {args.lengths}"
+             + (" --baseline SRC`" if args.baseline else "`"), "",
+             f"d6 looped forwards and backwards (30 fps, 480x480) onto the ICT-FaceKit head (26,719 vertices); "
+             f"{platform.machine()}, {os.cpu_count()} cores; peak resident memory from /usr/bin/time. "
+             f"Goal: flat in length, animate at most {GOAL_GB} GB.", "",
+             "| code | job | " + " | ".join(f"{s} s ({s * 30} frames)" for s in lengths) + " | growth per minute |",
+             "|---|---|" + "---|" * len(lengths) + "---|"]
+    for name, _ in versions:
+        for job in ("encode", "animate", "decode"):
+            cells = {s: (g, w) for n, j, s, g, w in rows if n == name and j == job}
+            growth = ((cells[lengths[-1]][0] - cells[lengths[0]][0]) / ((lengths[-1] - lengths[0]) / 60)
+                      if len(lengths) > 1 else float("nan"))
+            lines.append(f"| {name} | {job} | " + " | ".join(f"{cells[s][0]:.2f} GB ({cells[s][1]:.0f} s)"
+                                                             for s in lengths) + f" | {growth * 1024:+.0f} MB |")
+    publish("memory_length.md", lines)
+
+
+if __name__ == "__main__":
+    main()
