@@ -1,13 +1,90 @@
-"""Write a file completely or not at all."""
+"""Write a file (or a folder) completely or not at all, and the outputs of one job all together or none.
+
+Each output is written to a hidden temporary beside it (``.NAME.XXXXXXXX.SUFFIX``) and moved onto
+its path when it is complete. Inside an :func:`output_group` (the command line runs every job in
+one) the move waits for the group to end: a job interrupted or failing late leaves none of its
+outputs, not some of them, and the files that were at those paths before stay as they were.
+"""
 
 from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
+from contextvars import ContextVar
 from pathlib import Path
 
-__all__ = ["atomic_output"]
+__all__ = ["atomic_output", "atomic_folder", "output_group"]
+
+# The open group's list of (temporary, final path), or None outside any group.
+_GROUP: ContextVar[list[tuple[Path, Path]] | None] = ContextVar("faceanim_output_group", default=None)
+
+
+@contextlib.contextmanager
+def output_group():
+    """Outputs finished inside the block (by :func:`atomic_output` or :func:`atomic_folder`) appear
+    together when it ends without error; on an error or an interrupt (``KeyboardInterrupt``) none of
+    them appears and their temporary files are removed.
+
+    Groups nest; an inner group moves its own outputs into place when it ends (a step whose output a
+    later step reads, as the demo's performance video is read by its capture step).
+
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> try:
+    ...     with output_group():
+    ...         with atomic_output(folder / "a.txt") as tmp:
+    ...             _ = tmp.write_text("finished")
+    ...         raise KeyboardInterrupt  # interrupted before the second output
+    ... except KeyboardInterrupt:
+    ...     pass
+    >>> sorted(p.name for p in folder.iterdir())  # neither a.txt nor its temporary file
+    []
+    """
+    pending: list[tuple[Path, Path]] = []
+    token = _GROUP.set(pending)
+    try:
+        yield
+        _GROUP.reset(token)
+        token = None
+        while pending:
+            tmp, path = pending[0]
+            _move_into_place(tmp, path)
+            pending.pop(0)
+    finally:
+        if token is not None:
+            _GROUP.reset(token)
+        for tmp, _ in pending:
+            _remove(tmp)
+
+
+def _hand_over(tmp: Path, path: Path) -> None:
+    """Move ``tmp`` onto ``path`` now, or when the open group ends."""
+    group = _GROUP.get()
+    if group is None:
+        _move_into_place(tmp, path)
+    else:
+        group.append((tmp, path))
+
+
+def _move_into_place(tmp: Path, path: Path) -> None:
+    if tmp.is_dir() and path.is_dir():
+        path.rmdir()  # an empty folder waiting for it (a non-empty one is refused by rmdir)
+    os.replace(tmp, path)
+
+
+def _remove(tmp: Path) -> None:
+    if tmp.is_dir():
+        shutil.rmtree(tmp, ignore_errors=True)
+    else:
+        tmp.unlink(missing_ok=True)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 @contextlib.contextmanager
@@ -15,7 +92,8 @@ def atomic_output(path, suffix: str | None = None):
     """Yield a temporary path beside ``path``; move it onto ``path`` only if the block succeeds.
 
     A failure inside the block (a bad argument found late, an interrupted write) leaves any earlier
-    file at ``path`` untouched and no partial file behind.
+    file at ``path`` untouched and no partial file behind. Inside an :func:`output_group` the move
+    waits for the group's end.
 
     >>> import tempfile, pathlib
     >>> out = pathlib.Path(tempfile.mkdtemp()) / "x.txt"
@@ -27,15 +105,45 @@ def atomic_output(path, suffix: str | None = None):
     path = Path(path)
     if not path.parent.exists():
         raise FileNotFoundError(f"{path}: the folder {path.parent} does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix, dir=path.parent)
-    os.close(fd)
-    tmp = Path(tmp)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes files private; outputs get the usual permissions
+    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix, dir=path.parent)
+    tmp, handed = Path(name), False
     try:
+        os.close(fd)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes files private; outputs get the usual permissions
         yield tmp
-        os.replace(tmp, path)
+        _hand_over(tmp, path)
+        handed = True
     finally:
-        if tmp.exists():
-            tmp.unlink()
+        if not handed:
+            tmp.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def atomic_folder(path):
+    """Yield a temporary folder beside ``path``; it becomes ``path`` (which must be absent or an empty
+    folder) only if the block succeeds. Inside an :func:`output_group` the move waits for the group's end;
+    the files written into the temporary folder are the folder's business and are not held back.
+
+    >>> import tempfile, pathlib
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "frames"
+    >>> with atomic_folder(out) as work:
+    ...     _ = (work / "0.txt").write_text("frame")
+    >>> [p.name for p in out.iterdir()]
+    ['0.txt']
+    """
+    path = Path(path)
+    if not path.parent.exists():
+        raise FileNotFoundError(f"{path}: the folder {path.parent} does not exist")
+    work, handed = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent)), False
+    try:
+        os.chmod(work, 0o777 & ~_umask())  # mkdtemp makes folders private
+        inside = _GROUP.set(None)  # files inside go straight into the temporary folder
+        try:
+            yield work
+        finally:
+            _GROUP.reset(inside)
+        _hand_over(work, path)
+        handed = True
+    finally:
+        if not handed:
+            _remove(work)

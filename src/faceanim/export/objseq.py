@@ -3,11 +3,9 @@ MeshLab and most research code read), sharing one material and texture."""
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 from pathlib import Path
 
+from ..atomic import atomic_folder
 from ..errors import InputError
 from ..geometry.animation import Animation
 from ..geometry.obj import obj_text, write_material
@@ -19,27 +17,20 @@ def write_obj_sequence(folder, animation: Animation, *, stem: str = "frame") -> 
     """Write ``<stem>_00000.obj`` ... into ``folder`` (created; it must not exist or be empty), with
     ``face.mtl`` and ``face.png`` when the mesh is textured. Returns the OBJ paths.
 
-    The folder appears complete or not at all: the frames are written into a hidden folder beside it,
-    which is renamed into place at the end.
+    The folder appears complete or not at all (:func:`~faceanim.atomic.atomic_folder`): the frames are
+    written into a hidden folder beside it, which is renamed into place at the end (at the end of the
+    job, inside an :func:`~faceanim.atomic.output_group`).
     """
     folder = check_sequence_folder(folder)
     mesh = animation.mesh
     textured = mesh.texture is not None and mesh.uv is not None
     digits = max(5, len(str(len(animation) - 1)))
     names = [f"{stem}_{t:0{digits}d}.obj" for t in range(len(animation))]
-    work = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
-    try:
+    with atomic_folder(folder) as work:
         if textured:
             write_material(work, "face", mesh.texture)
         for name, positions in zip(names, animation.frames(), strict=True):
             (work / name).write_text(obj_text(mesh.with_vertices(positions), material="face" if textured else None))
-        os.chmod(work, 0o777 & ~_umask())
-        if folder.exists():
-            folder.rmdir()
-        os.replace(work, folder)
-    finally:
-        if work.exists():
-            shutil.rmtree(work)
     return [folder / name for name in names]
 
 
@@ -51,9 +42,3 @@ def check_sequence_folder(folder) -> Path:
     if not folder.parent.exists():
         raise InputError(f"{folder}: the folder {folder.parent} does not exist")
     return folder
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
