@@ -74,8 +74,8 @@ def test_express_generic_route_reaches_the_target(tmp_path, avatar):
     (["--emotion", "glee"], "unknown emotion 'glee'; valid: joy"),
     (["--au", "12:1", "--intensity", "2"], "--intensity scales an --emotion"),
     (["--au", "12:1", "--frames", "10"], "an OBJ holds one still face"),
-    (["--au", "12:1", "--frames", "1"], "--frames must be a whole number of at least 3"),
-    (["--au", "12:1", "--fps", "0"], "--fps must be a positive number"),
+    (["--au", "12:1", "--frames", "1"], "--frames must be a whole number from 3 to 10000, got 1"),
+    (["--au", "12:1", "--fps", "0"], "--fps must be a number from 1 to 1000, got 0.0"),
 ])
 def test_express_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, args, message):
     out = tmp_path / "x.obj"
@@ -96,7 +96,7 @@ def test_express_and_aus_refuse_outputs_they_cannot_write(tmp_path, capsys):
     assert main(["express", "--au", "12:1", "-o", str(tmp_path / "missing" / "x.glb")]) == 2
     assert "the folder" in capsys.readouterr().err
     assert main(["aus", "any.mp4", "-o", str(tmp_path / "aus.txt")]) == 2
-    assert "AU intensities are written as .csv" in capsys.readouterr().err
+    assert "-o " + str(tmp_path / "aus.txt") + ": this output is written as .csv" in capsys.readouterr().err
     assert main(["aus", "any.mp4", "-o", str(tmp_path / "missing" / "aus.csv")]) == 2
     assert "does not exist" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []

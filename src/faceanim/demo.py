@@ -24,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
 from .mpeg4 import FAP_COUNT
 from .mpeg4.fapstream import FapStream
 
@@ -72,17 +71,22 @@ class DemoResult:
 
 def run_demo(folder, *, progress=None) -> DemoResult:
     """Run the demo into ``folder`` (created if missing). Returns what it wrote and measured.
-    ``progress``, a :class:`~faceanim.progress.Progress`, shows each step as it runs (quiet when None)."""
+    ``progress``, a :class:`~faceanim.progress.Progress`, shows each step as it runs (quiet when None).
+
+    Each step's outputs appear together when the step ends (see :func:`~faceanim.atomic.output_group`):
+    the performance video, then the capture's glTF, FAPs and preview, then the report."""
     from . import pipeline, portrait
+    from .atomic import output_group
+    from .outputs import check_output_folder, check_outputs
     from .progress import as_progress
     from .render.video import video_writer
 
-    folder = Path(folder)
-    if folder.exists() and not folder.is_dir():
-        raise InputError(f"{folder}: exists and is not a folder")
+    folder = check_output_folder("-o", folder)
     folder.mkdir(parents=True, exist_ok=True)
     result = DemoResult(folder, {name: folder / name for name in
                                  ("demo.glb", "preview.mp4", "demo.fap", "performance.mp4", "report.html")})
+    for path in result.outputs.values():
+        check_outputs({"-o": (path, path.suffix)})
     shown = as_progress(progress)
     shown.status("making the avatar of the astronaut portrait")
     with _timed(result.steps, "the avatar: astronaut portrait tracked, face mesh built and textured"):
@@ -93,14 +97,16 @@ def run_demo(folder, *, progress=None) -> DemoResult:
                               "them (Arad's RBF)"):
         script = scripted_stream()
         frames = performance_frames(image, landmarks, target, script, progress=shown)
-        with video_writer(result.outputs["performance.mp4"], FPS, image.shape[1], image.shape[0]) as write:
+        with output_group(), video_writer(result.outputs["performance.mp4"], FPS, image.shape[1],
+                                          image.shape[0]) as write:  # in place now: the capture reads it
             for frame in frames:
                 write(frame)
     with _timed(result.steps, "the capture and retargeting: video tracked, encoded to FAPs, its motion "
                               "followed by the avatar, glTF, preview video"):
-        animation, recovered = pipeline.animate(
-            result.outputs["performance.mp4"], result.outputs["demo.glb"], target=target,
-            preview=result.outputs["preview.mp4"], fap=result.outputs["demo.fap"], progress=shown)
+        with output_group():  # in place when the step ends: the report's stills are read from the preview
+            animation, recovered = pipeline.animate(
+                result.outputs["performance.mp4"], result.outputs["demo.glb"], target=target,
+                preview=result.outputs["preview.mp4"], fap=result.outputs["demo.fap"], progress=shown)
     result.recovery = fap_recovery(script, recovered)
     stills = _stills(result.outputs["preview.mp4"], apex_frames())
     _write_report(result, stills, frames=len(animation), vertices=len(target.mesh.vertices))

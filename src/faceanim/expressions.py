@@ -20,6 +20,7 @@ lid folds, nothing beyond MediaPipe's outline), and the projection can only carr
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,8 @@ __all__ = ["express", "aus", "expression_recipe", "ROUTES", "slider_codes", "au_
 
 ROUTES = ("direct", "generic")
 _SUFFIXES = (".obj", ".glb", ".fap")
+FPS_RANGE = (1.0, 1000.0)  # --fps: a .fap holds a whole frame rate (never 0); above 1000 no player keeps up
+MAX_FRAMES = 10_000  # --frames: one onset-apex-offset of 6.7 minutes at 25 fps; each frame is made by the muscles
 
 
 def expression_recipe(*, au=None, emotion=None, intensity=None) -> dict:
@@ -131,30 +134,36 @@ def _target_fields(target, recipe, frames, route, progress):
 
 
 def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, points=None, fdp=None,
-            frames=None, fps: float = 25.0, route: str = "direct", target=None, progress=None):
+            frames=None, fps: float = 25.0, route: str = "direct", target=None, progress=None, force: bool = False):
     """``faceanim express``: an AU recipe or an emotion on a target face, written as ``.obj`` (the
-    still face), ``.glb`` (still, or onset-apex-offset over ``frames``; with every AU as a named morph
-    target) or ``.fap``. ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps
-    (quiet when None). Returns ``(fields (T, V, 3), recipe made)``."""
+    still face), ``.glb`` (still, or onset-apex-offset over ``frames``, 3 to :data:`MAX_FRAMES`, at
+    ``fps`` in :data:`FPS_RANGE`; with every AU as a named morph target) or ``.fap``. ``progress``, a
+    :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None); ``force`` replaces an
+    ``.obj``'s material and texture even where faceanim did not write them. Returns ``(fields (T, V, 3),
+    recipe made)``."""
     from .export import MorphSet, morphs_from_animation, write_glb
     from .geometry import write_mesh
     from .geometry.animation import Animation
     from .inputs import load_target, target_unit
     from .mpeg4.fapfile import write_fap
+    from .outputs import check_outputs
     from .progress import as_progress
     from .synth.expression import au_fields
 
     output = Path(output)
-    if output.suffix.lower() not in _SUFFIXES:
-        raise InputError(f"{output}: an expression is written as {', '.join(_SUFFIXES)}")
-    if not output.parent.exists():
-        raise InputError(f"{output}: the folder {output.parent} does not exist")
+    check_outputs({"-o": (output, _SUFFIXES)}, inputs={"--target": target_mesh, "--points": points, "--fdp": fdp},
+                  force=force)
     if route not in ROUTES:
         raise InputError(f"--route must be one of {', '.join(ROUTES)}, got {route!r}")
-    if not np.isfinite(fps) or fps <= 0:
-        raise InputError(f"--fps must be a positive number, got {fps}")
-    if frames is not None and (int(frames) != frames or frames < 3):
-        raise InputError(f"--frames must be a whole number of at least 3, got {frames}")
+    low, high = FPS_RANGE
+    if isinstance(fps, bool) or not isinstance(fps, (int, float, np.number)) or not low <= fps <= high:
+        raise InputError(f"--fps must be a number from {low:g} to {high:g}, got {fps!r}")
+    if frames is not None and (isinstance(frames, bool) or not isinstance(frames, (int, float, np.number))
+                               or not 3 <= frames <= MAX_FRAMES or int(frames) != frames):
+        raise InputError(f"--frames must be a whole number from 3 to {MAX_FRAMES}, got {frames!r}")
+    if output.suffix.lower() == ".fap" and fps != round(fps):
+        warnings.warn(f"--fps {fps:g} is written to the .fap as {round(fps)}: the format holds whole frame rates",
+                      stacklevel=2)
     if frames is not None and output.suffix.lower() == ".obj":
         raise InputError(f"{output}: an OBJ holds one still face; write .glb or .fap for --frames")
     recipe = expression_recipe(au=au, emotion=emotion, intensity=intensity)
@@ -165,7 +174,7 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
     fields, made, face = _target_fields(target, recipe, None if frames is None else int(frames), route, shown)
     suffix = output.suffix.lower()
     if suffix == ".obj":
-        write_mesh(output, target.mesh.with_vertices(target.mesh.vertices + fields[0]))
+        write_mesh(output, target.mesh.with_vertices(target.mesh.vertices + fields[0]), force=force)
     elif suffix == ".fap":
         from .motion import clip_to_range, motion_to_faps
 
@@ -199,14 +208,12 @@ def aus(video, output, *, neutral=None, smoothing=True, progress=None):
     from .export.curves import write_au_csv
     from .generic import landmark_target
     from .inputs import capture_motion
+    from .outputs import check_outputs
     from .synth import MuscleFace
     from .synth.fitting import AuFitter, bilateral
 
     output = Path(output)
-    if output.suffix.lower() != ".csv":
-        raise InputError(f"{output}: AU intensities are written as .csv")
-    if not output.parent.exists():
-        raise InputError(f"{output}: the folder {output.parent} does not exist")
+    check_outputs({"-o": (output, ".csv")}, inputs={"VIDEO": video, "--neutral": neutral})
     motion = capture_motion(video, neutral=neutral, smoothing=smoothing, progress=progress)
     face = MuscleFace(landmark_target(motion.neutral[:468]))
     fitter = AuFitter(face, motion.names[:468])

@@ -13,6 +13,7 @@ from .errors import FileFormatError, InputError
 from .expressions import aus, express  # the expression jobs live in their own module; re-exported here
 from .geometry import read_mesh, write_mesh
 from .inputs import capture_motion, load_target, motion_of_track, target_unit
+from .outputs import SEQUENCE_FOLDER, check_outputs
 from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
 
 __all__ = ["transfer", "read_pairs", "track", "encode", "fap_info", "avatar",
@@ -43,7 +44,7 @@ def read_pairs(path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def transfer(source_neutral, source_expression, target, output, *, correspondence, method: str = "clone",
-             mask=None, regions: tuple[str, ...] = ()) -> Path:
+             mask=None, regions: tuple[str, ...] = (), force: bool = False) -> Path:
     """``faceanim transfer``: write ``target`` wearing the source's expression to ``output``.
 
     Parameters
@@ -57,8 +58,13 @@ def transfer(source_neutral, source_expression, target, output, *, correspondenc
         JSON list of target vertex ids allowed to move.
     regions : tuple of str
         Face regions allowed to move (needs 68 pairs in the iBUG / Multi-PIE order).
+    force : bool
+        Replace an ``.obj`` output's material and texture even where faceanim did not write them.
     """
     output = Path(output)
+    check_outputs({"-o": (output, (".obj", ".ply", ".glb"))}, force=force, inputs={
+        "SRC_NEUTRAL": source_neutral, "SRC_EXPRESSION": source_expression, "TARGET_NEUTRAL": target,
+        "--correspondence": correspondence, "--mask": mask})
     src0, src1, dst = read_mesh(source_neutral), read_mesh(source_expression), read_mesh(target)
     if len(src1.vertices) != len(src0.vertices):
         raise InputError(f"{source_expression}: has {len(src1.vertices)} vertices but {source_neutral} has "
@@ -87,7 +93,7 @@ def transfer(source_neutral, source_expression, target, output, *, correspondenc
         in_region = region_mask(dst.vertices, dst.vertices[pairs.target], regions)
         allowed = in_region if allowed is None else allowed & in_region
     result = transfer_expression(src0, src1, dst, pairs, method=method, mask=allowed)
-    write_mesh(output, result)
+    write_mesh(output, result, force=force)
     return output
 
 
@@ -105,8 +111,8 @@ def track(video, output, *, overlay=None, csv=None, options=None, progress=None,
     from .render.video import video_writer
 
     output = Path(output)
-    if output.suffix != ".npz":
-        raise InputError(f"{output}: a track is written as .npz")
+    check_outputs({"-o": (output, ".npz"), "--overlay": (overlay, ".mp4"), "--csv": (csv, ".csv")},
+                  inputs={"VIDEO": video, "--model": model})
     shown = as_progress(progress)
     result = track_video(video, options=options or TrackerOptions(), progress=shown, model=model)
     result.save(output)
@@ -144,8 +150,7 @@ def encode(source, output, *, neutral=None, smoothing=True, progress=None):
     from .mpeg4.fapfile import write_fap
 
     output = Path(output)
-    if output.suffix != ".fap":
-        raise InputError(f"{output}: FAPs are written as .fap")
+    check_outputs({"-o": (output, ".fap")}, inputs={"VIDEO_OR_TRACK": source, "--neutral": neutral})
     motion = capture_motion(source, neutral=neutral, smoothing=smoothing, progress=progress)
     stream, clipped = clip_to_range(motion_to_faps(motion, name=Path(source).stem.replace(" ", "_") or "faceanim"))
     write_fap(output, stream)
@@ -189,29 +194,11 @@ def avatar(photo, output):
     from .mpeg4 import metres_per_unit
     from .portrait import avatar_target
 
-    output = _check_output(output)
+    output = Path(output)
+    check_outputs({"-o": (output, ".glb")}, inputs={"PHOTO": photo})
     target = avatar_target(photo)
     write_glb(output, target.mesh, extras={"points": target.points}, metres_per_unit=metres_per_unit(target.fapu))
     return target
-
-
-def _check_output(path, suffixes=(".glb",)) -> Path:
-    path = Path(path)
-    if path.suffix.lower() not in suffixes:
-        raise InputError(f"{path}: this output is written as {' or '.join(suffixes)}")
-    if not path.parent.exists():
-        raise InputError(f"{path}: the folder {path.parent} does not exist")
-    return path
-
-
-def _check_extra_outputs(obj_sequence, csv) -> None:
-    """Refuse unusable extra outputs before any work is done."""
-    from .export.objseq import check_sequence_folder
-
-    if csv is not None:
-        _check_output(csv, (".csv",))
-    if obj_sequence is not None:
-        check_sequence_folder(obj_sequence)
 
 
 def _write_extra_outputs(animation, stream, obj_sequence, csv, progress) -> None:
@@ -292,8 +279,11 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     from .progress import as_progress
     from .retarget.decode import animate_faps
 
-    output = _check_output(output)
-    _check_extra_outputs(obj_sequence, csv)
+    output = Path(output)
+    check_outputs({"-o": (output, ".glb"), "--preview": (preview, ".mp4"), "--csv": (csv, ".csv"),
+                   "--obj-sequence": (obj_sequence, SEQUENCE_FOLDER)},
+                  inputs={"FILE.fap": fap_path, "--target": target_mesh, "--points": points, "--fdp": fdp,
+                          "--parts": parts})
     shown = as_progress(progress)
     stream = read_fap(fap_path)
     target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
@@ -330,8 +320,10 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
 
     if via not in ("motion", "faps"):
         raise InputError(f"via must be motion or faps, got {via!r}")
-    output = _check_output(output)
-    _check_extra_outputs(obj_sequence, csv)
+    output = Path(output)
+    check_outputs({"-o": (output, ".glb"), "--fap": (fap, ".fap"), "--preview": (preview, ".mp4"),
+                   "--csv": (csv, ".csv"), "--obj-sequence": (obj_sequence, SEQUENCE_FOLDER)},
+                  inputs={"VIDEO": video, "--target": target_mesh, "--points": points, "--fdp": fdp, "--parts": parts})
     if neutral is not None and not isinstance(parse_neutral(str(neutral), 2**62), tuple):
         raise InputError("animate takes the neutral as FRAME or START:END")  # said before any work is done
     shown = as_progress(progress)

@@ -177,14 +177,20 @@ def read_mesh(path) -> Mesh:
         raise FileFormatError(path, str(exc)) from None
 
 
-def write_mesh(path, mesh: Mesh) -> None:
-    """Write ``mesh`` to .obj, .ply or .glb, chosen by the extension; complete or not at all."""
+def write_mesh(path, mesh: Mesh, *, force: bool = False) -> None:
+    """Write ``mesh`` to .obj, .ply or .glb, chosen by the extension; complete or not at all.
+
+    A textured ``.obj`` brings its material and image beside it (``me.mtl``, ``me_texture.png``); a
+    file of either name that faceanim did not write is refused unless ``force`` (see :func:`write_obj`)."""
     path = Path(path)
     writer = _WRITERS.get(_suffix(path))
     if writer is None:
         choices = ", ".join(sorted(_WRITERS))
         raise InputError(f"{path}: cannot write mesh format {_suffix(path)!r}; use one of {choices}")
-    writer(path, mesh)
+    if writer is write_obj:
+        write_obj(path, mesh, force=force)
+    else:
+        writer(path, mesh)
 
 
 def read_glb_json(path) -> dict:

@@ -181,26 +181,37 @@ def obj_text(mesh: Mesh, *, material: str | None = None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_material(folder, name: str, texture: np.ndarray) -> None:
-    """``<name>.mtl`` and its texture ``<name>.png`` in ``folder``, for OBJ files that say ``mtllib <name>.mtl``."""
-    from PIL import Image
+def write_material(folder, name: str, texture: np.ndarray, *, image: str | None = None) -> None:
+    """``<name>.mtl`` and its texture ``image`` (default ``<name>.png``) in ``folder``, for OBJ files that
+    say ``mtllib <name>.mtl``. Both carry faceanim's mark (:func:`faceanim.outputs.is_ours`)."""
+    from PIL import Image, PngImagePlugin
+
+    from ..outputs import MARK, MTL_HEADER
 
     folder = Path(folder)
-    with atomic_output(folder / f"{name}.png") as tmp:
-        Image.fromarray(texture).save(tmp, format="PNG")
+    image = image or f"{name}.png"
+    text = PngImagePlugin.PngInfo()
+    text.add_text("Software", MARK)
+    with atomic_output(folder / image) as tmp:
+        Image.fromarray(texture).save(tmp, format="PNG", pnginfo=text)
     with atomic_output(folder / f"{name}.mtl") as tmp:
-        tmp.write_text(f"newmtl faceanim_texture\nKd 1 1 1\nmap_Kd {name}.png\n")
+        tmp.write_text(f"{MTL_HEADER}\nnewmtl faceanim_texture\nKd 1 1 1\nmap_Kd {image}\n")
 
 
-def write_obj(path, mesh: Mesh) -> None:
-    """Write ``mesh`` as OBJ; with a texture, also ``<stem>.mtl`` and ``<stem>.png`` beside it.
+def write_obj(path, mesh: Mesh, *, force: bool = False) -> None:
+    """Write ``mesh`` as OBJ; with a texture, also its material and image beside it, named after it
+    (``me.obj``: ``me.mtl`` and ``me_texture.png``, see :func:`faceanim.outputs.side_files`).
 
-    The file is written completely or not at all.
+    The files are written completely or not at all. A material or image of those names that faceanim
+    did not write is not replaced (an :class:`~faceanim.errors.InputError` names it) unless ``force``.
     """
+    from ..outputs import check_side_files, side_files
+
     path = Path(path)
     textured = mesh.texture is not None and mesh.uv is not None
     text = obj_text(mesh, material=path.stem if textured else None)
     if textured:
-        write_material(path.parent, path.stem, mesh.texture)
+        check_side_files(path, force=force)
+        write_material(path.parent, path.stem, mesh.texture, image=side_files(path)[1].name)
     with atomic_output(path) as tmp:
         tmp.write_text(text)
