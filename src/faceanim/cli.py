@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
 import sys
+import threading
 import warnings
 
 from .errors import InputError
@@ -29,6 +32,13 @@ def _capture_arguments(p, *, image: bool = True, filters: str = "the One Euro te
     p.add_argument("--no-filter", action="store_true", help=f"turn {filters} off")
 
 
+def _force_argument(p) -> None:
+    """``--force``, for the commands whose ``.obj`` output brings side files."""
+    p.add_argument("--force", action="store_true",
+                   help="an .obj output's material and texture (OUT.mtl, OUT_texture.png) may replace files of those "
+                        "names that faceanim did not write")
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="faceanim", description="The motion of a real face onto any 3D face.")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -48,6 +58,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--region", action="append", default=[], metavar="NAME",
                    help="only move this face region (lips, eyes, brows, nose, cheeks, jaw; repeatable; needs "
                         "68 pairs in iBUG order)")
+    _force_argument(p)
 
     p = commands.add_parser("track", help="track the face through a video",
                             description="Track the face in VIDEO (any file FFmpeg reads, an image, or a folder of "
@@ -135,6 +146,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="direct: muscles on the target itself (default); generic: made on the generic face and "
                         "projected onto the target")
     p.add_argument("-o", "--output", required=True, metavar="OUT")
+    _force_argument(p)
 
     p = commands.add_parser("aus", help="FACS action-unit intensities of a video, as CSV",
                             description="Track the face, take head motion out, and fit the muscles' action units "
@@ -151,9 +163,20 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    """Run the command line; returns the exit status."""
+    """Run the command line; returns the exit status.
+
+    One policy for what goes wrong: an input or argument faceanim cannot use (its declared errors,
+    and the operating system's refusals: a missing file, no permission, a full disk) is one line on
+    stderr and exit status 2; an interrupt (Ctrl-C, SIGINT, or SIGTERM) removes the job's temporary
+    files and whatever outputs it had finished, prints ``faceanim: interrupted`` and returns 130
+    (SIGINT) or 143 (SIGTERM), 128 plus the signal's number as shells do; anything else is a bug in
+    faceanim and shows its traceback. A job's outputs appear together when it ends without error
+    (:func:`faceanim.atomic.output_group`), so a failure or an interrupt leaves none of them, and the
+    files that were at their paths before stay as they were (the demo puts each step's outputs in
+    place when the step ends, so it loses only the step it was in).
+    """
     args = _parser().parse_args(argv)
-    from . import pipeline
+    from .atomic import output_group
     from .progress import QUIET, Progress
 
     # Long steps shown on stderr when it is a terminal (as git does): a bar per frame loop, a line per step;
@@ -163,87 +186,136 @@ def main(argv=None) -> int:
     warnings.formatwarning = lambda message, *_, **__: f"faceanim: warning: {message}\n"
 
     try:
-        if args.command == "transfer":
-            out = pipeline.transfer(args.source_neutral, args.source_expression, args.target, args.output,
-                                    correspondence=args.correspondence, method=args.method, mask=args.mask,
-                                    regions=tuple(args.region))
-            print(f"wrote {out}")
-        elif args.command == "track":
-            from .capture.tracker import TrackerOptions
-
-            result = pipeline.track(args.video, args.output, overlay=args.overlay, csv=args.csv,
-                                    options=TrackerOptions(start_face=args.start_face), model=args.model,
-                                    progress=progress)
-            print(f"wrote {args.output}: {len(result)} frames, face found in {int(result.valid.sum())}, "
-                  f"filled {int(result.filled.sum())}")
-        elif args.command == "encode":
-            stream, clipped = pipeline.encode(args.source, args.output, neutral=args.neutral,
-                                              smoothing=not args.no_filter, progress=progress)
-            active = int(stream.mask.any(axis=0).sum())
-            note = f"; {clipped} values clipped to their MPEG-4 range" if clipped else ""
-            print(f"wrote {args.output}: {len(stream)} frames, {active} FAPs{note}")
-        elif args.command == "decode":
-            animation = pipeline.decode(args.source, args.output, target_mesh=args.target, points=args.points,
-                                        fdp=args.fdp, preview=args.preview, head_motion=args.head_motion,
-                                        obj_sequence=args.obj_sequence, csv=args.csv, progress=progress,
-                                        parts=args.parts)
-            print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
-                                                                       else ""))
-        elif args.command == "animate":
-            animation, _ = pipeline.animate(args.source, args.output, target_mesh=args.target, points=args.points,
-                                            fdp=args.fdp, preview=args.preview, fap=args.fap,
-                                            head_motion=args.head_motion, obj_sequence=args.obj_sequence,
-                                            csv=args.csv, via=args.via, neutral=args.neutral,
-                                            smoothing=not args.no_filter, progress=progress, parts=args.parts)
-            print(f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview
-                                                                       else ""))
-        elif args.command == "avatar":
-            target = pipeline.avatar(args.photo, args.output)
-            print(f"wrote {args.output}: {len(target.mesh.vertices)} vertices, {len(target.points)} control points")
-        elif args.command == "demo":
-            from .demo import run_demo, view_command
-
-            result = run_demo(args.output, progress=progress)
-            total = sum(seconds for _, seconds in result.steps)
-            for what, seconds in result.steps:
-                print(f"{seconds:6.1f} s  {what}")
-            print(f"done in {total:.1f} s; outputs in {result.folder}/:")
-            for path in result.outputs.values():
-                print(f"  {path}")
-            print(f"open {result.outputs['report.html']} in a browser, or watch it: {view_command(result)}")
-        elif args.command == "view":
-            server = pipeline.view(args.model, video=args.video, fap=args.fap, port=args.port)
-            print(f"faceanim view: {server.url} (Ctrl-C to stop)", flush=True)
-            if not args.no_browser:
-                import webbrowser
-
-                webbrowser.open(server.url)
-            try:
-                server.serve_forever()
-            except KeyboardInterrupt:
-                pass
-            finally:
-                server.close()
-        elif args.command == "express":
-            fields, made = pipeline.express(args.output, au=args.au, emotion=args.emotion, intensity=args.intensity,
-                                            target_mesh=args.target, points=args.points, fdp=args.fdp,
-                                            frames=args.frames, fps=args.fps, route=args.route, progress=progress)
-            from .synth.facs import recipe_text
-
-            print(f"wrote {args.output}: AUs {recipe_text(made)}" + (f", {len(fields)} frames" if args.frames else ""))
-        elif args.command == "aus":
-            numbers, values = pipeline.aus(args.video, args.output, neutral=args.neutral, smoothing=not args.no_filter,
-                                           progress=progress)
-            print(f"wrote {args.output}: {len(values)} frames, {len(numbers)} action units")
-        elif args.command == "fap-info":
-            print(pipeline.fap_info(args.fap))
-    except (InputError, FileNotFoundError, IsADirectoryError, PermissionError) as exc:
+        with _interrupts_raised(), output_group():
+            said = _run(args, progress)
+    except KeyboardInterrupt as exc:  # the group has removed the temporary files and the finished outputs
+        print(("\n" if progress is not QUIET else "") + "faceanim: interrupted", file=sys.stderr)
+        return 128 + getattr(exc, "signum", signal.SIGINT)
+    except (InputError, OSError) as exc:
         print(f"faceanim: error: {exc}", file=sys.stderr)
         return 2
     except ValueError as exc:  # an argument the library rejected (shapes, ids, settings)
         print(f"faceanim: error: {exc}", file=sys.stderr)
         return 2
+    if said:
+        print(said)
     return 0
+
+
+class _Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM, raised where the main thread is, so every ``finally`` on the way out runs."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = int(signum)
+
+
+def _raise_interrupted(signum, frame):
+    for number in _SIGNALS:  # a second Ctrl-C does not cut the clean-up short
+        signal.signal(number, signal.SIG_IGN)
+    raise _Interrupted(signum)
+
+
+_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+@contextlib.contextmanager
+def _interrupts_raised():
+    """SIGINT and SIGTERM raise :class:`_Interrupted` inside the block (the handlers before it are
+    restored after). A signal ignored when faceanim started (SIGINT in a shell's background job) stays
+    ignored; off the main thread, where handlers cannot be set, nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = {number: signal.getsignal(number) for number in _SIGNALS}
+    for number, handler in before.items():
+        if handler != signal.SIG_IGN:
+            signal.signal(number, _raise_interrupted)
+    try:
+        yield
+    finally:
+        for number, handler in before.items():
+            signal.signal(number, signal.SIG_DFL if handler is None else handler)
+
+
+def _run(args, progress) -> str:
+    """Run the parsed command; returns what to print once its outputs are in place."""
+    from . import pipeline
+
+    if args.command == "transfer":
+        out = pipeline.transfer(args.source_neutral, args.source_expression, args.target, args.output,
+                                correspondence=args.correspondence, method=args.method, mask=args.mask,
+                                regions=tuple(args.region), force=args.force)
+        return f"wrote {out}"
+    if args.command == "track":
+        from .capture.tracker import TrackerOptions
+
+        result = pipeline.track(args.video, args.output, overlay=args.overlay, csv=args.csv,
+                                options=TrackerOptions(start_face=args.start_face), model=args.model,
+                                progress=progress)
+        return (f"wrote {args.output}: {len(result)} frames, face found in {int(result.valid.sum())}, "
+                f"filled {int(result.filled.sum())}")
+    if args.command == "encode":
+        stream, clipped = pipeline.encode(args.source, args.output, neutral=args.neutral,
+                                          smoothing=not args.no_filter, progress=progress)
+        active = int(stream.mask.any(axis=0).sum())
+        note = f"; {clipped} values clipped to their MPEG-4 range" if clipped else ""
+        return f"wrote {args.output}: {len(stream)} frames, {active} FAPs{note}"
+    if args.command == "decode":
+        animation = pipeline.decode(args.source, args.output, target_mesh=args.target, points=args.points,
+                                    fdp=args.fdp, preview=args.preview, head_motion=args.head_motion,
+                                    obj_sequence=args.obj_sequence, csv=args.csv, progress=progress,
+                                    parts=args.parts)
+        return f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview else "")
+    if args.command == "animate":
+        animation, _ = pipeline.animate(args.source, args.output, target_mesh=args.target, points=args.points,
+                                        fdp=args.fdp, preview=args.preview, fap=args.fap,
+                                        head_motion=args.head_motion, obj_sequence=args.obj_sequence,
+                                        csv=args.csv, via=args.via, neutral=args.neutral,
+                                        smoothing=not args.no_filter, progress=progress, parts=args.parts)
+        return f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview else "")
+    if args.command == "avatar":
+        target = pipeline.avatar(args.photo, args.output)
+        return f"wrote {args.output}: {len(target.mesh.vertices)} vertices, {len(target.points)} control points"
+    if args.command == "demo":
+        from .demo import run_demo, view_command
+
+        result = run_demo(args.output, progress=progress)
+        total = sum(seconds for _, seconds in result.steps)
+        lines = [f"{seconds:6.1f} s  {what}" for what, seconds in result.steps]
+        lines.append(f"done in {total:.1f} s; outputs in {result.folder}/:")
+        lines += [f"  {path}" for path in result.outputs.values()]
+        lines.append(f"open {result.outputs['report.html']} in a browser, or watch it: {view_command(result)}")
+        return "\n".join(lines)
+    if args.command == "view":
+        server = pipeline.view(args.model, video=args.video, fap=args.fap, port=args.port)
+        print(f"faceanim view: {server.url} (Ctrl-C to stop)", flush=True)
+        if not args.no_browser:
+            import webbrowser
+
+            webbrowser.open(server.url)
+        try:
+            server.serve_forever()
+        except KeyboardInterrupt:  # Ctrl-C (or SIGTERM) is how the viewer stops: exit 0, nothing to clean up
+            pass
+        finally:
+            server.close()
+        return ""
+    if args.command == "express":
+        fields, made = pipeline.express(args.output, au=args.au, emotion=args.emotion, intensity=args.intensity,
+                                        target_mesh=args.target, points=args.points, fdp=args.fdp,
+                                        frames=args.frames, fps=args.fps, route=args.route, progress=progress,
+                                        force=args.force)
+        from .synth.facs import recipe_text
+
+        return f"wrote {args.output}: AUs {recipe_text(made)}" + (f", {len(fields)} frames" if args.frames else "")
+    if args.command == "aus":
+        numbers, values = pipeline.aus(args.video, args.output, neutral=args.neutral, smoothing=not args.no_filter,
+                                       progress=progress)
+        return f"wrote {args.output}: {len(values)} frames, {len(numbers)} action units"
+    if args.command == "fap-info":
+        return pipeline.fap_info(args.fap)
+    raise AssertionError(f"no handler for the command {args.command!r}")  # argparse allows only the commands above
 
 
 if __name__ == "__main__":
