@@ -10,8 +10,9 @@ mesh with a weight per shape and frame. The shapes are the displacements' princi
 2. the second pass projects every frame on those directions (the weights, ``T x K`` numbers) and
    measures, exactly, the worst per-vertex error of every candidate count of shapes.
 
-Memory is the kept basis and one chunk (about 130 MB on a 26,000-vertex head), whatever the length;
-each frame is made twice, which for a streamed animation means deformed twice.
+Memory is the kept basis and one chunk (about 130 MB on a 26,000-vertex head), whatever the length.
+Each frame is read twice: a deformer's animation is best spilled first
+(:func:`~faceanim.geometry.animation.spilled`), so that it is deformed once.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ __all__ = ["MorphSet", "morphs_from_animation"]
 
 _WEIGHT_SLACK = 1e-9  # weights this far outside [0, 1] are rounding, and are clipped
 _MARGIN = 16  # directions kept beyond max_modes in the running SVD, so truncating it costs the kept ones little
-_CHUNK = 64  # frames taken at once by each pass
+_CHUNK = 96  # frames taken at once by each pass (near the running SVD's cheapest per frame)
 # Counts of shapes tried: each costs arithmetic over every frame, so they are spaced by about 1.5x.
 _COUNTS = (1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64, 96, 128)
 _ROUNDING = 1e-9  # a weight this small against its mode's strength is rounding (a frame at rest): zero
@@ -119,7 +120,7 @@ def morphs_from_animation(animation: Animation, *, max_modes: int = 64, toleranc
     if not len(shapes):
         return MorphSet(np.zeros((0, len(rest) // 3, 3)), (), np.zeros((len(animation), 0)), animation.fps)
     counts = np.array(sorted({c for c in _COUNTS if c < len(shapes)} | {len(shapes)}), dtype=np.int64)
-    curves, errors = _weights_and_errors(animation, rest, shapes, strength, counts)
+    curves, errors = _weights_and_errors(animation, rest, shapes, strength, counts, tolerance * size)
     passing = np.flatnonzero(errors <= tolerance * size)
     at = passing[0] if len(passing) else len(counts) - 1
     k = int(counts[at])
@@ -145,13 +146,17 @@ def _principal_shapes(animation: Animation, rest: np.ndarray, rank: int) -> tupl
     directions, from the eigenvectors of its small Gram matrix; exact when the displacements have
     rank ``rank`` or less, the truncated SVD's best approximation otherwise up to what truncating
     at each step loses (the margin over ``max_modes`` keeps that to the weak directions)."""
-    kept = np.zeros((0, len(rest)))
+    kept, power = np.zeros((0, len(rest))), np.zeros(0)
     for chunk in animation.chunks(_CHUNK):
-        stack = np.vstack([kept, chunk.reshape(len(chunk), -1) - rest])
-        power, mix = np.linalg.eigh(stack @ stack.T)
-        power, mix = power[::-1][:rank], np.ascontiguousarray(mix[:, ::-1][:, :rank].T)  # BLAS needs it contiguous
-        kept = mix @ stack  # rows sigma_i v_i
-        kept = kept[power > 0]
+        fresh = chunk.reshape(len(chunk), -1) - rest
+        cross = kept @ fresh.T
+        # The stack's Gram matrix; the kept rows are orthogonal, so their block is their powers.
+        gram = np.block([[np.diag(power), cross], [cross.T, fresh @ fresh.T]])
+        power, mix = np.linalg.eigh(gram)
+        order = np.argsort(power)[::-1][:rank]
+        power, mix = power[order], np.ascontiguousarray(mix[:, order].T)  # BLAS needs it contiguous
+        kept = mix[:, :len(kept)] @ kept + mix[:, len(kept):] @ fresh  # rows sigma_i v_i
+        kept, power = kept[power > 0], power[power > 0]
     strength = np.linalg.norm(kept, axis=1)
     if not len(strength):
         return kept, strength
@@ -168,12 +173,14 @@ def _principal_shapes(animation: Animation, rest: np.ndarray, rank: int) -> tupl
 
 
 def _weights_and_errors(animation: Animation, rest: np.ndarray, shapes: np.ndarray, strength: np.ndarray,
-                        counts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                        counts: np.ndarray, limit: float) -> tuple[np.ndarray, np.ndarray]:
     """Weights ``(T, K)`` of every frame on ``shapes`` (projections; rounding-level ones zeroed) and,
     for each count in ``counts``, the worst per-vertex distance over all frames between the
-    animation and what the first ``count`` shapes replay."""
+    animation and what the first ``count`` shapes replay. A count found over ``limit`` is measured no
+    further (its error is then a lower bound, already over the limit); the largest always is."""
     curves = np.empty((len(animation), len(shapes)))
     worst = np.zeros(len(counts))
+    squared_limit = limit * limit
     start = 0
     for chunk in animation.chunks(_CHUNK):
         displacements = chunk.reshape(len(chunk), -1) - rest
@@ -181,10 +188,13 @@ def _weights_and_errors(animation: Animation, rest: np.ndarray, shapes: np.ndarr
         weights[np.abs(weights) <= _ROUNDING * strength] = 0.0
         curves[start:start + len(chunk)] = weights
         start += len(chunk)
+        measured = worst <= squared_limit
+        measured[-1] = True
         for columns in _column_blocks(displacements.shape[1]):  # a block stays in cache through every count
             residual = displacements[:, columns]
             done = 0
-            for i, count in enumerate(counts):
+            for i in np.flatnonzero(measured):
+                count = counts[i]
                 residual -= weights[:, done:count] @ shapes[done:count, columns]
                 done = count
                 squared = residual * residual

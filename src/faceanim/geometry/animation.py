@@ -3,11 +3,15 @@
 A long performance on a dense head is gigabytes of positions (26,000 vertices take 0.6 MB a frame),
 so an animation that comes out of a deformer is not held: it is a function that makes any run of
 frames, and every consumer (the morph compression, a preview, an OBJ sequence) reads it in chunks.
-What that costs in memory is one chunk, whatever the length.
+What that costs in memory is one chunk, whatever the length. Where several consumers read the same
+frames, :func:`spilled` makes them once into a temporary file and lets each read them back from
+there: the frames cost disk (0.3 MB a frame on that head), not memory, and are deformed once.
 """
 
 from __future__ import annotations
 
+import contextlib
+import tempfile
 from collections.abc import Callable, Iterator
 
 import numpy as np
@@ -15,7 +19,7 @@ import numpy as np
 from ..validation import as_array
 from .mesh import Mesh
 
-__all__ = ["Animation", "FrameSource"]
+__all__ = ["Animation", "FrameSource", "spilled"]
 
 FrameSource = Callable[[int, int], np.ndarray]
 """``frames(start, stop)`` -> positions ``(stop - start, V, 3)`` float64 of frames ``start .. stop - 1``."""
@@ -111,3 +115,42 @@ class Animation:
     def map(self, change: Callable[[int, int, np.ndarray], np.ndarray]) -> Animation:
         """A streamed animation whose frames are ``change(start, stop, positions)`` of these."""
         return Animation.streamed(self.mesh, lambda a, b: change(a, b, self.chunk(a, b)), self._length, self.fps)
+
+
+@contextlib.contextmanager
+def spilled(animation: Animation, *, progress=None, desc: str = "deforming"):
+    """Yield ``animation`` with its frames made once and kept in a temporary file, read back in chunks.
+
+    The file holds each frame's displacement from the rest as float32 (what a glTF file keeps, to
+    about 1e-7 of the motion's size); it has no name in any folder (it is unlinked as it is made), so
+    nothing is left behind however the process ends. A held animation is yielded as it is.
+    ``progress`` (a :class:`~faceanim.progress.Progress`) shows the frames being made, as ``desc``.
+
+    >>> mesh = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    >>> made = []
+    >>> def rise(a, b):
+    ...     made.append((a, b))
+    ...     return mesh.vertices + np.arange(a, b)[:, None, None] / 4
+    >>> with spilled(Animation.streamed(mesh, rise, 5, 25.0)) as kept:
+    ...     twice = [float(kept.chunk(4, 5)[0, 0, 0]) for _ in range(2)]
+    >>> twice, made
+    ([1.0, 1.0], [(0, 5)])
+    """
+    from ..progress import as_progress
+
+    if not animation.is_streamed:
+        yield animation
+        return
+    rest = animation.mesh.vertices
+    frame_bytes = rest.size * 4
+    with tempfile.TemporaryFile(prefix="faceanim-frames-") as store:
+        for frame in as_progress(progress).bar(animation.frames(), total=len(animation), desc=desc):
+            store.write((frame - rest).astype(np.float32).tobytes())
+        store.flush()
+
+        def frames(start: int, stop: int) -> np.ndarray:
+            store.seek(start * frame_bytes)
+            raw = store.read((stop - start) * frame_bytes)
+            return rest + np.frombuffer(raw, dtype=np.float32).reshape(stop - start, -1, 3)
+
+        yield Animation.streamed(animation.mesh, frames, len(animation), animation.fps)
