@@ -12,6 +12,7 @@ import numpy as np
 from .errors import FileFormatError, InputError
 from .expressions import aus, express  # the expression jobs live in their own module; re-exported here
 from .geometry import read_mesh, write_mesh
+from .geometry.animation import spilled
 from .inputs import capture_motion, load_target, motion_of_track, target_unit
 from .outputs import SEQUENCE_FOLDER, check_outputs
 from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
@@ -244,7 +245,7 @@ def _preview(path, animation, target, progress, *, source_frames=None, size: int
     width = size * (2 if source_frames is not None else 1)
     source = iter(source_frames) if source_frames is not None else None
     with Renderer(size, size) as renderer, video_writer(path, animation.fps, width, size) as write:
-        for positions in progress.bar(animation.positions, total=len(animation), desc="rendering the preview"):
+        for positions in progress.bar(animation.frames(), total=len(animation), desc="rendering the preview"):
             frame = renderer.render(animation.mesh, camera, positions=positions, mode=mode)
             if source is not None:
                 left = next(source, None)
@@ -289,11 +290,12 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
     shown.status(f"playing {len(stream)} frames of FAPs on the target ({len(target.mesh.vertices):,} vertices)")
     animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
-    shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
-    _write_glb(output, animation, unit)
-    _write_extra_outputs(animation, stream, obj_sequence, csv, shown)
-    if preview is not None:
-        _preview(preview, animation, target, shown)
+    with spilled(animation, progress=shown) as kept:  # deformed once, read by every output
+        shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
+        _write_glb(output, kept, unit)
+        _write_extra_outputs(kept, stream, obj_sequence, csv, shown)
+        if preview is not None:
+            _preview(preview, kept, target, shown)
     return animation
 
 
@@ -341,14 +343,15 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
         animation = animate_motion(motion, target, head_motion=head_motion, gaze=stream, parts=pieces)
     else:
         animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
-    shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
-    _write_glb(output, animation, unit)
-    _write_extra_outputs(animation, stream, obj_sequence, csv, shown)
-    if fap is not None:
-        write_fap(fap, stream)
-    if preview is not None:
-        _, pose = head_frame(recorded)
-        _preview(preview, animation, target, shown, source_frames=overlay_frames(recorded, pose))
+    with spilled(animation, progress=shown) as kept:  # deformed once, read by every output
+        shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
+        _write_glb(output, kept, unit)
+        _write_extra_outputs(kept, stream, obj_sequence, csv, shown)
+        if fap is not None:
+            write_fap(fap, stream)
+        if preview is not None:
+            _, pose = head_frame(recorded)
+            _preview(preview, kept, target, shown, source_frames=overlay_frames(recorded, pose))
     return animation, stream
 
 
