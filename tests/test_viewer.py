@@ -1,16 +1,27 @@
 """`faceanim view`: the server answers only its own routes, bad inputs are refused before it starts, and,
 in a real headless Chromium (skipped where absent), the page plays the face, keeps the video in step and
-mixes action units with sliders. Screenshots go to a temporary folder that the test output names."""
+mixes action units with sliders. Screenshots go to a temporary folder that the test output names.
+
+The server's HTTP (issue 20): the Range parser is checked with Hypothesis over 10,000 headers (every one
+gets a range inside the body, a 416 or the whole body; nothing else, no exception), and a running server
+is asked for known answers: 206/416/200 with their Content-Length and Content-Range, the Host check, a
+bounded number of workers, a half-open connection dropped after its timeout, and files served as they
+were opened, whatever their paths become."""
 
 import http.client
 import json
+import os
 import shutil
+import socket
 import subprocess
+import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import shared
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
 from test_gltf import animated_grid
 
 from faceanim import pipeline, portrait
@@ -21,6 +32,7 @@ from faceanim.mpeg4.fapfile import read_fap
 from faceanim.mpeg4.fapstream import FapStream
 from faceanim.retarget.decode import animate_faps
 from faceanim.viewer import ViewerFiles, ViewerServer, fap_curves
+from faceanim.viewer.server import parse_range
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -83,6 +95,229 @@ def test_video_is_served_in_ranges_for_seeking(grid_glb):
         response = connection.getresponse()
         response.read()
         assert response.status == 416
+
+
+# ---- the Range parser, by property and against RFC 9110 read case by case
+
+DIGITS = st.one_of(st.integers(0, 2100).map(str), st.sampled_from(["", "00", "007", str(2**64), "9" * 5000,
+                                                                     "0" * 5000 + "1"]))
+WELL_FORMED = st.builds(lambda unit, first, last, end: f"{unit}={first}-{last}{end}",  # mostly parse, many sizes
+                        st.sampled_from(["bytes", "BYTES", "Bytes"]), DIGITS, DIGITS, st.sampled_from(["", ",", " , "]))
+NUMBERISH = ("", "0", "5", "99", "100", "999", "1000", "1001", "0100", str(2**64), "9" * 5000, "+1", "-1", " 1", "1_0",
+             "1.5", "0x10", "1e3", "\u0661", "\u00b2", "\uff11", "inf")
+NEAR_MISSES = st.builds(  # the grammar's pieces, right and wrong, put together
+    lambda unit, equals, specs, comma: unit + equals + comma.join(a + dash + b for a, dash, b in specs),
+    st.sampled_from(["bytes", "bytes", "BYTES", "byte", "bytes ", " bytes", "items", "", "byte\u017f", "bytes\x00"]),
+    st.sampled_from(["=", "=", "", "==", " = "]),
+    st.lists(st.tuples(st.sampled_from(NUMBERISH), st.sampled_from(["-", "-", "", "--", " - ", "\u2212"]),
+                       st.sampled_from(NUMBERISH)), max_size=3),
+    st.sampled_from([",", ", ", " ,", ",,", ";", ", ,"]))
+HEADERS = st.one_of(st.text(), st.text(alphabet="bytesBYTES=0123456789-, \t;\u2212"), NEAR_MISSES, WELL_FORMED)
+SIZES = st.one_of(st.integers(0, 2100), st.integers(0, 2**64))
+
+
+@settings(max_examples=10_000, deadline=None)
+@given(header=HEADERS, size=SIZES)
+def test_every_range_header_gets_a_range_in_the_body_a_416_or_the_whole_body(header, size):
+    answer = parse_range(header, size)
+    if answer is None or answer == "unsatisfiable":
+        return
+    first, last = answer
+    assert type(first) is int and type(last) is int and 0 <= first <= last < size
+
+
+def rfc_9110(first: int | None, last: int | None, size: int):
+    """The answer to ``bytes=first-last`` (either may be absent) from RFC 9110 14.1.2 and 15.5.17, one sentence
+    at a time: ``None`` for the whole body (a suffix of an empty body), "unsatisfiable" for a 416."""
+    if first is None:  # suffix-range: the last ``last`` bytes, all of them if the body is shorter
+        if last == 0:
+            return "unsatisfiable"  # "a suffix-range with a non-zero suffix-length" is what can be satisfied
+        return None if size == 0 else (max(0, size - last), size - 1)
+    if first >= size:
+        return "unsatisfiable"  # "a first-pos that is less than the current length" is what can be satisfied
+    if last is None:
+        return first, size - 1
+    if last < first:
+        return "unsatisfiable"  # invalid; the server may ignore or reject it: this one rejects
+    return first, min(last, size - 1)  # a last-pos past the end means the end
+
+
+POSITIONS = st.one_of(st.none(), st.integers(0, 2100), st.integers(0, 10**40))
+
+
+@settings(max_examples=2_000, deadline=None)
+@example(first=None, last=1, size=0, zeros="", unit="bytes", pad="")  # found by Hypothesis: was 416, not the body
+@given(first=POSITIONS, last=POSITIONS, size=SIZES, zeros=st.sampled_from(["", "0", "000"]),
+       unit=st.sampled_from(["bytes", "BYTES", "bYtEs"]), pad=st.sampled_from(["", " ", "\t ", ", ", " ,,"]))
+def test_well_formed_single_ranges_are_answered_as_rfc_9110_says(first, last, size, zeros, unit, pad):
+    if first is None and last is None:
+        return  # "bytes=-" is not a range: see the next test
+    text = "-".join("" if n is None else zeros + str(n) for n in (first, last))
+    header = f"{unit}={pad.strip(', ')}{text}{pad}"  # white space before; after, also empty list elements
+    assert parse_range(header, size) == rfc_9110(first, last, size), header
+
+
+@pytest.mark.parametrize("header", ["bytes=-", "bytes=", "bytes", "bytes=1-2-3", "bytes=+5-", "bytes=5", "bytes=a-b",
+                                    "bytes=0-1,5-6", "bytes=0-1,x", "bytes=1 - 2", "bytes = 0-1", "bytes=\u0661-",
+                                    "items=0-1", "=0-1", "bytes=0-1;", "", "byte\u017f=0-1"])
+def test_headers_outside_the_grammar_or_with_several_ranges_are_ignored(header):
+    assert parse_range(header, 1000) is None
+
+
+def test_parse_range_refuses_a_size_that_is_no_byte_count():
+    for size in (-1, 1.5, True, "10"):
+        with pytest.raises(ValueError, match=r"size must be a byte count \(an int >= 0\), got"):
+            parse_range("bytes=0-1", size)
+
+
+# ---- the server's answers, through a real running server
+
+BODY = np.random.default_rng(0).bytes(1000)  # a stand-in video: the server does not look inside
+
+
+def ask(port: int, target: str = "/files/source.mp4", *, method: str = "GET", headers: dict | None = None,
+        hosts: tuple | None = None):
+    """(status, headers, body) of one request sent as written; ``hosts``: the Host headers (default this one)."""
+    connection = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+    connection.putrequest(method, target, skip_host=True, skip_accept_encoding=True)
+    for host in (f"127.0.0.1:{port}",) if hosts is None else hosts:
+        connection.putheader("Host", host)
+    for name, value in (headers or {}).items():
+        connection.putheader(name, value)
+    connection.endheaders()
+    response = connection.getresponse()
+    body = response.read()
+    connection.close()
+    return response.status, response.headers, body
+
+
+@pytest.fixture
+def served(tmp_path, grid_glb):
+    video = tmp_path / "clip.mp4"
+    video.write_bytes(BODY)
+    with ViewerServer(ViewerFiles(grid_glb, video=video), port=0).start() as server:
+        yield server
+
+
+@pytest.mark.parametrize(("header", "status", "content_range", "part"), [
+    (None, 200, None, slice(None)),
+    ("bytes=100-199", 206, "bytes 100-199/1000", slice(100, 200)),
+    ("bytes=100-", 206, "bytes 100-999/1000", slice(100, None)),
+    ("bytes=-500", 206, "bytes 500-999/1000", slice(500, None)),
+    ("bytes=-5000", 206, "bytes 0-999/1000", slice(None)),
+    ("bytes=900-5000", 206, "bytes 900-999/1000", slice(900, None)),
+    ("bytes=999-999", 206, "bytes 999-999/1000", slice(999, None)),
+    ("Bytes=0-0, ", 206, "bytes 0-0/1000", slice(0, 1)),
+    (f"bytes=0-{'9' * 5000}", 206, "bytes 0-999/1000", slice(None)),
+    ("bytes=100-50", 416, "bytes */1000", slice(0)),
+    ("bytes=1000-", 416, "bytes */1000", slice(0)),
+    ("bytes=-0", 416, "bytes */1000", slice(0)),
+    (f"bytes={'9' * 5000}-", 416, "bytes */1000", slice(0)),
+    ("bytes=abc", 200, None, slice(None)),
+    ("bytes=1-2-3", 200, None, slice(None)),
+    ("bytes=0-1,5-6", 200, None, slice(None)),  # several ranges: the whole body
+    ("items=0-1", 200, None, slice(None)),
+], ids=lambda value: value[:20] if isinstance(value, str) else None)
+def test_video_ranges_are_answered_with_206_416_or_the_whole_body(served, capfd, header, status, content_range,
+                                                                   part):
+    got, headers, body = ask(served.port, headers={"Range": header} if header else None)
+    assert (got, headers["Content-Range"], body) == (status, content_range, BODY[part])
+    assert headers["Content-Length"] == str(len(body))
+    assert capfd.readouterr().err == ""  # no traceback on the server's side
+
+
+def test_ranges_apply_to_every_route_and_only_to_a_plain_get(served, grid_glb):
+    assert ask(served.port, "/files/model.glb", headers={"Range": "bytes=0-3"})[::2] == (206, b"glTF")
+    config = ask(served.port, "/config.json")[2]
+    status, headers, body = ask(served.port, "/config.json", headers={"Range": "bytes=0-0"})
+    assert (status, headers["Content-Range"], body) == (206, f"bytes 0-0/{len(config)}", b"{")
+    status, headers, body = ask(served.port, method="HEAD", headers={"Range": "bytes=0-9"})  # ranges are GET's
+    assert (status, headers["Content-Length"], headers["Content-Range"], body) == (200, "1000", None, b"")
+    status, headers, body = ask(served.port, headers={"Range": "bytes=0-9", "If-Range": '"an-etag"'})
+    assert (status, body) == (200, BODY)  # no validator is ever sent, so no If-Range matches: the whole body
+
+
+def test_only_requests_addressed_to_a_loopback_name_are_answered(served, grid_glb):
+    port, model = served.port, grid_glb.read_bytes()
+    for host in (f"127.0.0.1:{port}", f"localhost:{port}", f"LocalHost:{port}", "127.0.0.1", "localhost"):
+        assert ask(port, "/files/model.glb", hosts=(host,))[::2] == (200, model), host
+    for host in ("evil.example", f"evil.example:{port}", f"127.0.0.1:{port + 1}", f"[::1]:{port}", "",
+                 f"127.0.0.1:{port}.evil.example", f"localhost:{port}@evil.example", "127.0.0.1.nip.io"):
+        status, _, body = ask(port, "/files/model.glb", hosts=(host,))
+        assert status == 421 and model not in body, host
+    assert ask(port, "http://evil.example/files/model.glb")[0] == 421  # absolute form names a host too
+    assert ask(port, f"http://localhost:{port}/files/model.glb")[0] == 200
+    assert ask(port, "/files/model.glb", hosts=())[0] == 400  # no Host at all
+    assert ask(port, "/files/model.glb", hosts=(f"127.0.0.1:{port}", "evil.example"))[0] == 400
+
+
+def test_connections_beyond_the_workers_are_told_503_instead_of_holding_a_thread(grid_glb):
+    with ViewerServer(ViewerFiles(grid_glb), port=0, workers=4, timeout=60).start() as server:
+        before = threading.active_count()
+        idle = [socket.create_connection(("127.0.0.1", server.port), timeout=30) for _ in range(50)]
+        try:
+            # accepted in order: the first four hold the workers, each later one is answered and closed
+            assert all(s.recv(200).startswith(b"HTTP/1.0 503 Service Unavailable\r\n") for s in idle[4:])
+            assert threading.active_count() - before <= 4
+        finally:
+            for s in idle:
+                s.close()
+
+
+def test_a_half_open_connection_is_dropped_after_its_timeout_and_frees_its_worker(grid_glb):
+    with ViewerServer(ViewerFiles(grid_glb), port=0, workers=1, timeout=1).start() as server:
+        stalled = socket.create_connection(("127.0.0.1", server.port), timeout=30)
+        stalled.sendall(b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n")  # the headers never end
+        with socket.create_connection(("127.0.0.1", server.port), timeout=30) as other:
+            assert other.recv(200).startswith(b"HTTP/1.0 503 ")  # the one worker waits on the stalled request
+        assert stalled.recv(200) == b""  # until the server gives up on it, without an answer
+        stalled.close()
+        assert raw_get(server.port, "/") == 200  # and the worker serves again
+
+
+def test_files_are_served_as_opened_whatever_their_paths_become(tmp_path, grid_glb):
+    real, secret = tmp_path / "real.mp4", tmp_path / "secret.mp4"
+    real.write_bytes(BODY)
+    secret.write_bytes(b"not for the viewer " * 100)
+    link = tmp_path / "clip.mp4"
+    link.symlink_to(real)
+    model = tmp_path / "model.glb"
+    shutil.copy(grid_glb, model)
+    with ViewerServer(ViewerFiles(model, video=link), port=0).start() as server:
+        swapped = tmp_path / "swapped"
+        swapped.symlink_to(secret)
+        os.replace(swapped, link)  # the symlink now points elsewhere
+        model.unlink()
+        model.symlink_to(secret)  # the model's path too
+        real.unlink()  # and the file first opened has no name left
+        assert ask(server.port)[::2] == (200, BODY)
+        assert ask(server.port, headers={"Range": "bytes=10-19"})[::2] == (206, BODY[10:20])
+        assert ask(server.port, "/files/model.glb")[::2] == (200, grid_glb.read_bytes())
+
+
+def open_descriptors() -> int:
+    if not Path("/proc/self/fd").is_dir():
+        pytest.skip("counts open descriptors in /proc/self/fd (Linux)")
+    return len(os.listdir("/proc/self/fd"))
+
+
+def test_only_regular_files_are_served_and_every_descriptor_is_closed_again(tmp_path, grid_glb):
+    fifo = tmp_path / "pipe.mp4"
+    os.mkfifo(fifo)  # opening it to read would wait for a writer: refused without waiting
+    before = open_descriptors()
+    for video, message in ((tmp_path, "is not a regular file"), (fifo, "is not a regular file"),
+                           (tmp_path / "gone.mp4", r"cannot be opened \(No such file or directory\)")):
+        with pytest.raises(InputError, match=rf"{video}: {message}"):
+            ViewerServer(ViewerFiles(grid_glb, video=video), port=0)
+    with ViewerServer(ViewerFiles(grid_glb, video=grid_glb), port=0).start() as server:
+        assert raw_get(server.port, "/") == 200
+        with pytest.raises(InputError, match="is in use"):  # the files it opened are closed again
+            ViewerServer(ViewerFiles(grid_glb, video=grid_glb), port=server.port)
+    assert open_descriptors() == before
+    with pytest.raises(ValueError, match="timeout must be a positive number of seconds, got 0"):
+        ViewerServer(ViewerFiles(grid_glb), timeout=0)
+    with pytest.raises(ValueError, match="workers must be an int >= 1, got 0"):
+        ViewerServer(ViewerFiles(grid_glb), workers=0)
 
 
 def test_view_refuses_bad_inputs_before_serving(tmp_path, grid_glb, capsys):
