@@ -178,7 +178,7 @@ def test_wrong_shapes_and_indices_are_named():
         turned_triangles(rest, np.zeros((2, 4, 3)), [[0, 1, 2]])
     with pytest.raises(ValueError, match=r"triangles must lie in \[0, 3\), got 3"):
         turned_triangles(rest, rest[None], [[0, 1, 3]])
-    with pytest.raises(ValueError, match=r"mask must have shape \(1\), got \(2\)"):
+    with pytest.raises(ValueError, match=r"mask must have shape \(1,\), got \(2,\)"):
         turned_triangles(rest, rest[None], [[0, 1, 2]], mask=[True, False])
     with pytest.raises(ValueError, match=r"moved must have shape \(T, 3, 3\), got \(3, 3\)"):
         rigid_residual(rest, rest)

@@ -1,22 +1,26 @@
 """The one place where arrays entering faceanim are checked and converted.
 
 Every public function that takes an array passes it through :func:`as_array`, so error messages
-look the same everywhere: they name the argument, what was expected and what arrived.
+look the same everywhere: they name the argument, what was expected and what arrived. With
+``frozen=True`` it also hands back an array nobody else can write: the vocabulary types (``Mesh``,
+``Target``, ``Track``, ``Motion``) keep their arrays that way, so what they cache from them cannot go
+stale.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["as_array", "as_index_array"]
+__all__ = ["as_array", "as_index_array", "restore_frozen"]
 
 
 def _shape_text(shape) -> str:
-    return "(" + ", ".join(str(s) for s in shape) + ")"
+    """A shape as Python writes a tuple: ``(V, 3)``, ``(T,)``."""
+    return "(" + ", ".join(str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
 
 
 def as_array(value, name: str, *, shape: tuple = (), dtype=np.float64, finite: bool = True,
-             min_length: int = 0) -> np.ndarray:
+             min_length: int = 0, frozen: bool = False) -> np.ndarray:
     """Convert ``value`` to an array of ``dtype`` and check its shape.
 
     Parameters
@@ -34,11 +38,16 @@ def as_array(value, name: str, *, shape: tuple = (), dtype=np.float64, finite: b
         Reject NaN and infinity (float dtypes only).
     min_length : int
         The least size of the first axis.
+    frozen : bool
+        Return a read-only array that shares its memory with nothing the caller can write:
+        ``value`` itself when it already is one (an owned, read-only, C-contiguous array of
+        ``dtype``), the converted array when converting made a new one, else a read-only copy.
 
     Returns
     -------
     numpy.ndarray
-        A C-contiguous array of ``dtype``.
+        A C-contiguous array of ``dtype``. A bool ``dtype`` accepts only bools and the numbers 0
+        and 1 (0.5 is no truth value).
 
     Examples
     --------
@@ -48,7 +57,15 @@ def as_array(value, name: str, *, shape: tuple = (), dtype=np.float64, finite: b
     Traceback (most recent call last):
     ...
     ValueError: vertices must have shape (V, 3), got (1, 2)
+    >>> mine = np.zeros((2, 3))
+    >>> kept = as_array(mine, "vertices", frozen=True)
+    >>> kept.flags.writeable, np.shares_memory(kept, mine)
+    (False, False)
+    >>> as_array(kept, "vertices", frozen=True) is kept  # already frozen: taken, not copied
+    True
     """
+    if np.dtype(dtype) == np.bool_:
+        _check_truth_values(value, name)
     try:
         arr = np.ascontiguousarray(value, dtype=dtype)
     except (TypeError, ValueError) as exc:
@@ -65,11 +82,47 @@ def as_array(value, name: str, *, shape: tuple = (), dtype=np.float64, finite: b
     if finite and np.issubdtype(arr.dtype, np.floating) and not np.isfinite(arr).all():
         bad = np.argwhere(~np.isfinite(arr))[0]
         raise ValueError(f"{name} must be finite, got {arr[tuple(bad)]} at index {tuple(int(i) for i in bad)}")
+    return _frozen(arr, value) if frozen else arr
+
+
+def _check_truth_values(value, name: str) -> None:
+    """Refuse numbers other than 0 and 1 where booleans are wanted (numpy would call 0.5 True)."""
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError):
+        return  # the conversion itself reports it
+    if raw.dtype == np.bool_ or not (np.issubdtype(raw.dtype, np.number) and raw.size):
+        return
+    bad = np.flatnonzero((raw != 0) & (raw != 1))
+    if bad.size:
+        pos = tuple(int(p) for p in np.unravel_index(bad[0], raw.shape))
+        raise ValueError(f"{name} must hold booleans (or 0 and 1), got {raw.flat[bad[0]]} at index {pos}")
+
+
+def _frozen(arr: np.ndarray, given) -> np.ndarray:
+    """``arr`` (``given`` converted) read-only, copied unless no one else can reach its memory."""
+    if arr.flags.owndata and not arr.flags.writeable:
+        return arr  # already frozen by its owner (another vocabulary type, a cached table)
+    made_here = arr is not given and arr.flags.owndata and isinstance(given, (np.ndarray, list, tuple))
+    if not made_here:
+        arr = arr.copy()
+    arr.flags.writeable = False
     return arr
 
 
-def as_index_array(value, name: str, *, upper: int, shape: tuple = ("N",)) -> np.ndarray:
-    """Convert ``value`` to int64 indices and check they lie in ``[0, upper)``.
+def restore_frozen(obj, state: dict) -> None:
+    """``__setstate__`` for the frozen vocabulary types: pickling and :func:`copy.deepcopy` hand
+    back writable arrays (numpy does not keep the flag), fresh and held by nobody else, so they are
+    marked read-only again."""
+    for value in state.values():
+        if isinstance(value, np.ndarray):
+            value.flags.writeable = False
+    obj.__dict__.update(state)
+
+
+def as_index_array(value, name: str, *, upper: int, shape: tuple = ("N",), frozen: bool = False) -> np.ndarray:
+    """Convert ``value`` to int64 indices and check they lie in ``[0, upper)`` (``frozen`` as for
+    :func:`as_array`).
 
     Examples
     --------
@@ -90,4 +143,4 @@ def as_index_array(value, name: str, *, upper: int, shape: tuple = ("N",)) -> np
         pos = np.unravel_index(bad[0], arr.shape)
         where = pos[0] if len(pos) == 1 else tuple(int(p) for p in pos)
         raise ValueError(f"{name} must lie in [0, {upper}), got {arr.flat[bad[0]]} at position {where}")
-    return arr
+    return _frozen(arr, value) if frozen else arr

@@ -191,10 +191,9 @@ class _Bucket:
         return len(self.faces)
 
 
-def _size_buckets(mesh: Mesh) -> list[_Bucket]:
+def _size_buckets(mesh: Mesh) -> tuple[_Bucket, ...]:
     """Triangles grouped by size (powers of two of their radius), cached on the (immutable) mesh."""
-    buckets = mesh.__dict__.get("_projection_buckets")
-    if buckets is None:
+    def compute():
         corners = mesh.vertices[mesh.triangles]
         centroids = corners.mean(axis=1)
         radius = np.linalg.norm(corners - centroids[:, None], axis=2).max(axis=1)
@@ -204,5 +203,6 @@ def _size_buckets(mesh: Mesh) -> list[_Bucket]:
         for value in np.unique(level):
             faces = np.flatnonzero(level == value)
             buckets.append(_Bucket(faces, cKDTree(centroids[faces]), float(radius[faces].max())))
-        mesh.__dict__["_projection_buckets"] = buckets
-    return buckets
+        return tuple(buckets)
+
+    return mesh._cached("projection_buckets", compute)

@@ -30,15 +30,17 @@ __all__ = ["edge_graph", "geodesic_distances", "cotangent_laplacian", "Biharmoni
 
 def edge_graph(mesh: Mesh) -> sparse.csr_matrix:
     """Symmetric ``(V, V)`` sparse matrix of edge lengths, cached on the mesh."""
-    graph = mesh.__dict__.get("_edge_graph")
-    if graph is None:
+    def compute():
         e = mesh.edges
         length = np.linalg.norm(mesh.vertices[e[:, 0]] - mesh.vertices[e[:, 1]], axis=1)
         V = len(mesh.vertices)
         graph = sparse.coo_matrix((np.r_[length, length], (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
                                   shape=(V, V)).tocsr()
-        mesh.__dict__["_edge_graph"] = graph
-    return graph
+        for array in (graph.data, graph.indices, graph.indptr):
+            array.flags.writeable = False  # handed out from the mesh's cache
+        return graph
+
+    return mesh._cached("edge_graph", compute)
 
 
 def geodesic_distances(mesh: Mesh, sources) -> np.ndarray:
@@ -54,12 +56,12 @@ def geodesic_distances(mesh: Mesh, sources) -> np.ndarray:
     True
     """
     sources = as_index_array(sources, "sources", upper=len(mesh.vertices))
-    solver = mesh.__dict__.get("_heat_solver")
-    if solver is None:
+    def heat_solver():
         import potpourri3d
 
-        solver = potpourri3d.MeshHeatMethodDistanceSolver(mesh.vertices, mesh.triangles)
-        mesh.__dict__["_heat_solver"] = solver
+        return potpourri3d.MeshHeatMethodDistanceSolver(mesh.vertices, mesh.triangles)
+
+    solver = mesh._cached("heat_solver", heat_solver)
     part = component_labels(mesh)
     out = np.stack([solver.compute_distance(int(s)) for s in sources]) if len(sources) else np.zeros((0, len(part)))
     out[part[None, :] != part[sources][:, None]] = np.inf

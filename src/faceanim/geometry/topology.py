@@ -20,14 +20,12 @@ def component_labels(mesh: Mesh) -> np.ndarray:
     >>> component_labels(m).tolist()
     [0, 0, 0, 1, 1, 1]
     """
-    labels = mesh.__dict__.get("_component_labels")
-    if labels is None:
+    def compute():
         V, e = len(mesh.vertices), mesh.edges
         graph = sparse.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(V, V))
-        labels = csgraph.connected_components(graph, directed=False)[1].astype(np.int64)
-        labels.flags.writeable = False
-        mesh.__dict__["_component_labels"] = labels
-    return labels
+        return csgraph.connected_components(graph, directed=False)[1].astype(np.int64)
+
+    return mesh._cached("component_labels", compute)
 
 
 def open_edges(triangles) -> np.ndarray:
