@@ -15,6 +15,18 @@ def test_exact_kernels_pass_through_centres(kernel):
     np.testing.assert_allclose(RbfWarp(CENTRES, VALUES, kernel=kernel)(CENTRES), VALUES, atol=1e-6)
 
 
+@pytest.mark.parametrize("kernel", ["thin_plate", "cubic", "linear", "gaussian"])
+@pytest.mark.parametrize("scale, shift", [(1.0, 0.0), (0.01, 0.5), (1000.0, -3e4)])  # cm, m, mm far away
+def test_exact_kernels_hit_their_centres_to_rounding(kernel, scale, shift):
+    """Passing through the centres to ~1e-12 relative, at any unit. Distances once computed as
+    |a|^2 + |b|^2 - 2 a.b made the linear kernel miss by 5e-8 (a distance of 0 came out ~1e-8)."""
+    centres = CENTRES * scale + shift
+    warp = RbfWarp(centres, VALUES, kernel=kernel)
+    miss = np.abs(warp(centres) - VALUES).max() / np.abs(VALUES).max()
+    assert miss < 1e-12
+    assert np.abs(warp.operator(centres) @ VALUES - VALUES).max() / np.abs(VALUES).max() < 1e-12
+
+
 @pytest.mark.parametrize("kernel", ["thin_plate", "cubic", "linear"])
 def test_affine_kernels_reproduce_affine_motion(kernel):
     A = rng.normal(size=(3, 3))

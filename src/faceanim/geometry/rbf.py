@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import linalg
 from scipy.spatial import cKDTree
+from scipy.spatial.distance import cdist
 
 from ..validation import as_array
 
@@ -195,7 +196,7 @@ class RbfWarp:
             raise ValueError(f"centres must be distinct; coincident centres: {shown}"
                              + (f" (and {len(pairs) - 5} more pairs)" if len(pairs) > 5 else ""))
         self._unit_centres = unit
-        distances = np.linalg.norm(unit[:, None] - unit[None], axis=-1)
+        distances = cdist(unit, unit)
         self._solver = _Solver.fit(kernel, distances, _poly(unit), smoothing)
         moved = np.moveaxis(values, -2, 0)  # (K, [T,] C)
         self._coefficients = self._solver.coefficients(moved)
@@ -204,10 +205,9 @@ class RbfWarp:
     def _design(self, points: np.ndarray) -> np.ndarray:
         points = as_array(points, "points", shape=("N", self.centres.shape[1]))
         unit = (points - self._origin) / self._radius
-        c = self._unit_centres
-        squared = (unit * unit).sum(1)[:, None] + (c * c).sum(1)[None] - 2 * unit @ c.T
-        distances = np.sqrt(np.maximum(squared, 0))
-        return self._solver.design(distances, _poly(unit))
+        # Exact differences, not |a|^2 + |b|^2 - 2 a.b: that cancels catastrophically near a centre
+        # (the linear kernel then missed its own centres by 2e-7).
+        return self._solver.design(cdist(unit, self._unit_centres), _poly(unit))
 
     def __call__(self, points) -> np.ndarray:
         """Interpolated values at ``points (N, D)``: ``(N, C)``, or ``(T, N, C)`` for framed values."""
