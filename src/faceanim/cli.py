@@ -302,13 +302,13 @@ def _run(args, progress) -> str:
             server.close()
         return ""
     if args.command == "express":
-        fields, made = pipeline.express(args.output, au=args.au, emotion=args.emotion, intensity=args.intensity,
-                                        target_mesh=args.target, points=args.points, fdp=args.fdp,
-                                        frames=args.frames, fps=args.fps, route=args.route, progress=progress,
-                                        force=args.force)
+        animation, made = pipeline.express(args.output, au=args.au, emotion=args.emotion, intensity=args.intensity,
+                                           target_mesh=args.target, points=args.points, fdp=args.fdp,
+                                           frames=args.frames, fps=args.fps, route=args.route, progress=progress,
+                                           force=args.force)
         from .synth.facs import recipe_text
 
-        return f"wrote {args.output}: AUs {recipe_text(made)}" + (f", {len(fields)} frames" if args.frames else "")
+        return f"wrote {args.output}: AUs {recipe_text(made)}" + (f", {len(animation)} frames" if args.frames else "")
     if args.command == "aus":
         numbers, values = pipeline.aus(args.video, args.output, neutral=args.neutral, smoothing=not args.no_filter,
                                        progress=progress)

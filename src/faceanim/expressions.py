@@ -67,16 +67,17 @@ def slider_codes() -> tuple[str, ...]:
                  for code in ((f"{number}L", f"{number}R") if au.needs_side else (str(number),)))
 
 
-def expression_motion(face, fields: np.ndarray, fps: float):
+def expression_motion(face, fields: np.ndarray, fps: float, *, at_points: bool = False):
     """A :class:`~faceanim.motion.Motion` of the target's control points under displacement
-    ``fields (T, V, 3)``, in the face frame (MPEG-4 axes, origin between the eyes' corners)."""
+    ``fields (T, V, 3)`` (or ``(T, P, 3)`` at the target's points, in their order, with
+    ``at_points``), in the face frame (MPEG-4 axes, origin between the eyes' corners)."""
     from .motion import Motion
 
     names = tuple(face.target.points)
     ids = face.target.ids(names)
     origin = 0.5 * (face.point("3.7", "L") + face.point("3.7", "R"))
     neutral = face.local(face.mesh.vertices[ids] - origin)
-    displacements = face.local(fields[:, ids])
+    displacements = face.local(np.asarray(fields) if at_points else fields[:, ids])
     pose = np.broadcast_to(np.eye(4), (len(fields), 4, 4)).copy()
     return Motion(names, neutral, displacements, pose, fps, face.target.fapu)
 
@@ -111,9 +112,11 @@ def _generic_carrier(target):
     return MuscleFace(source), DenseTransfer(source.mesh, target.mesh, pairs)
 
 
-def _target_fields(target, recipe, frames, route, progress):
-    """``(T, V, 3)`` displacement of the target per frame (T = 1 for a still), the recipe made at the
-    apex (after the exaggeration guard, which warns once there), and the target as a muscle face."""
+def _target_fields(target, recipe, frames, route):
+    """The target's displacement per frame as ``fields(start, stop) -> (stop - start, V, 3)``, the
+    number of frames (1 for a still), the recipe made at the apex (after the exaggeration guard,
+    which warns once there), and the target as a muscle face. Frames are made when asked for, so
+    a long expression is never held whole."""
     from .synth import MuscleFace
     from .synth.expression import synthesise
 
@@ -123,14 +126,16 @@ def _target_fields(target, recipe, frames, route, progress):
     else:
         face, carry = _generic_carrier(target)
     apex, made = synthesise(face, recipe)
-    if frames is None:
-        fields = [apex]
-    else:  # every frame made, not blended, so the jaw and lids turn on arcs
-        fields = [synthesise(face, {k: v * w for k, v in made.items()})[0]
-                  for w in progress.bar(envelope(frames), total=frames, desc="making the expression")]
-    if carry is not None:
-        fields = [carry(field) for field in fields]
-    return np.stack(fields), made, target_face
+    weights = np.ones(1) if frames is None else envelope(frames)
+
+    def field(w: float) -> np.ndarray:  # every frame made, not blended, so the jaw and lids turn on arcs
+        made_here = apex if w == 1.0 else synthesise(face, {k: v * w for k, v in made.items()})[0]
+        return made_here if carry is None else carry(made_here)
+
+    def fields(start: int, stop: int) -> np.ndarray:
+        return np.stack([field(w) for w in weights[start:stop]])
+
+    return fields, len(weights), made, target_face
 
 
 def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, points=None, fdp=None,
@@ -139,11 +144,12 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
     still face), ``.glb`` (still, or onset-apex-offset over ``frames``, 3 to :data:`MAX_FRAMES`, at
     ``fps`` in :data:`FPS_RANGE`; with every AU as a named morph target) or ``.fap``. ``progress``, a
     :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None); ``force`` replaces an
-    ``.obj``'s material and texture even where faceanim did not write them. Returns ``(fields (T, V, 3),
-    recipe made)``."""
+    ``.obj``'s material and texture even where faceanim did not write them. Returns ``(animation, recipe
+    made)``: the target's :class:`~faceanim.geometry.animation.Animation` (one frame for a still;
+    streamed, so its frames are made again when read)."""
     from .export import MorphSet, morphs_from_animation, write_glb
     from .geometry import write_mesh
-    from .geometry.animation import Animation
+    from .geometry.animation import Animation, spilled
     from .inputs import load_target, target_unit
     from .mpeg4.fapfile import write_fap
     from .outputs import check_outputs
@@ -171,33 +177,40 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
     target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
     if output.suffix.lower() == ".glb":  # refused now, not after the muscles' work, if of no human size
         unit = target_unit(target, str(target_mesh) if target_mesh is not None else "the target")
-    fields, made, face = _target_fields(target, recipe, None if frames is None else int(frames), route, shown)
+    fields, count, made, face = _target_fields(target, recipe, None if frames is None else int(frames), route)
+    rest = target.mesh.vertices
+    animation = Animation.streamed(target.mesh, lambda a, b: rest + fields(a, b), count, fps)
     suffix = output.suffix.lower()
-    if suffix == ".obj":
-        write_mesh(output, target.mesh.with_vertices(target.mesh.vertices + fields[0]), force=force)
-    elif suffix == ".fap":
-        from .motion import clip_to_range, motion_to_faps
+    with spilled(animation, progress=shown if frames is not None else None, desc="making the expression") as kept:
+        if suffix == ".obj":
+            write_mesh(output, target.mesh.with_vertices(kept.chunk(0, 1)[0]), force=force)
+        elif suffix == ".fap":
+            from .motion import clip_to_range, motion_to_faps
 
-        stream, _ = clip_to_range(motion_to_faps(expression_motion(face, fields, fps), name=output.stem or "faceanim"))
-        write_fap(output, stream)
-    else:
-        codes = slider_codes()
-        shown.status(f"writing {output} with {len(codes)} AU sliders as morph targets")
-        sliders = au_fields(face, codes)
-        if frames is None:
-            morphs = MorphSet(np.concatenate([fields, sliders]), ("expression", *(f"AU{c}" for c in codes)),
-                              default_weights=np.r_[1.0, np.zeros(len(codes))])
+            ids = target.ids(list(target.points))
+            at_points = np.concatenate([chunk[:, ids] - rest[ids] for chunk in kept.chunks()])
+            motion = expression_motion(face, at_points, fps, at_points=True)
+            stream, _ = clip_to_range(motion_to_faps(motion, name=output.stem or "faceanim"))
+            write_fap(output, stream)
         else:
-            animated = morphs_from_animation(Animation(target.mesh, target.mesh.vertices + fields, fps))
-            weights = np.hstack([animated.weights, np.zeros((len(fields), len(codes)))])
-            names = (*animated.names, *(f"AU{c}" for c in codes))
-            morphs = MorphSet(np.concatenate([animated.targets, sliders]), names, weights, fps)
-        from .synth.facs import recipe_text
+            codes = slider_codes()
+            shown.status(f"writing {output} with {len(codes)} AU sliders as morph targets")
+            sliders = au_fields(face, codes)
+            if frames is None:
+                morphs = MorphSet(np.concatenate([kept.chunk(0, 1) - rest, sliders]),
+                                  ("expression", *(f"AU{c}" for c in codes)),
+                                  default_weights=np.r_[1.0, np.zeros(len(codes))])
+            else:
+                animated = morphs_from_animation(kept)
+                weights = np.hstack([animated.weights, np.zeros((count, len(codes)))])
+                names = (*animated.names, *(f"AU{c}" for c in codes))
+                morphs = MorphSet(np.concatenate([animated.targets, sliders]), names, weights, fps)
+            from .synth.facs import recipe_text
 
-        write_glb(output, target.mesh, morphs, extras={"points": target.points, "recipe": recipe_text(made),
-                                                       "au_faps": au_fap_table(face, codes, sliders)},
-                  metres_per_unit=unit)
-    return fields, made
+            write_glb(output, target.mesh, morphs, extras={"points": dict(target.points), "recipe": recipe_text(made),
+                                                           "au_faps": au_fap_table(face, codes, sliders)},
+                      metres_per_unit=unit)
+    return animation, made
 
 
 def aus(video, output, *, neutral=None, smoothing=True, progress=None):

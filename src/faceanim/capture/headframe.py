@@ -22,6 +22,7 @@ DEFAULT_SMOOTHING = OneEuro()
 # Of MediaPipe's Procrustes landmarks (metric.py), those that expressions move: 136/365 ride on the jaw,
 # 147/376 and 205/425 on the cheeks a smile raises.
 _MOVED_BY_EXPRESSION = (136, 365, 147, 376, 205, 425)
+_BLOCK = 256  # frames fitted at once: the fits' temporaries stay a few MB however long the video
 
 
 def landmark_names(count: int) -> tuple[str, ...]:
@@ -43,8 +44,9 @@ def head_frame(track: Track):
     points = np.full((T, L, 3), np.nan)
     pose = np.tile(np.eye(4), (T, 1, 1))
     usable = np.flatnonzero(track.usable)
-    if len(usable):
-        points[usable], pose[usable] = metric_geometry_frames(track.landmarks[usable], track.width, track.height)
+    for start in range(0, len(usable), _BLOCK):  # the fit's temporaries bounded by a block, not the video
+        at = usable[start:start + _BLOCK]
+        points[at], pose[at] = metric_geometry_frames(track.landmarks[at], track.width, track.height)
     return points, pose
 
 
@@ -71,9 +73,11 @@ def restabilise(points: np.ndarray, pose: np.ndarray, rest: np.ndarray, usable: 
     skull's points stay put and only expression remains.
     """
     points, pose = points.copy(), pose.copy()
-    frames = np.flatnonzero(usable)
-    if len(frames):
-        to_frame = batch_procrustes(rest[:468], points[frames, :468], _skull_weights())
+    usable_frames = np.flatnonzero(usable)
+    weights = _skull_weights()
+    for start in range(0, len(usable_frames), _BLOCK):  # temporaries bounded by a block, not the video
+        frames = usable_frames[start:start + _BLOCK]
+        to_frame = batch_procrustes(rest[:468], points[frames, :468], weights)
         back = np.linalg.inv(to_frame)
         points[frames] = np.einsum("tij,tlj->tli", back[:, :3, :3], points[frames]) + back[:, None, :3, 3]
         pose[frames] = pose[frames] @ to_frame
@@ -127,6 +131,8 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
         fapu = fapu_from_points(lookup)
     except ValueError as exc:
         raise InputError(f"the neutral face gives no usable FAPU ({exc})") from None
-    displacements = np.where(usable[:, None, None], points - rest, np.nan)
+    displacements = points - rest
+    displacements[~usable] = np.nan
+    del points  # one (T, L, 3) array fewer held while the jaw's depth is corrected
     displacements = correct_jaw_depth(rest, displacements)
     return Motion(names, rest, displacements, pose, track.fps, fapu, valid=usable)

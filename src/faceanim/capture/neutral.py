@@ -8,6 +8,9 @@ from ..errors import InputError
 
 __all__ = ["relaxed_window", "parse_neutral"]
 
+_MEDIAN_FRAMES = 2000  # frames the median face is taken over, spread across the video
+_BLOCK = 512  # frames scored at once
+
 
 def relaxed_window(points, usable, fps: float, *, seconds: float = 0.5, mouth=None) -> tuple[int, int]:
     """``(start, end)`` frames (end exclusive) of the most relaxed stretch of a performance.
@@ -20,9 +23,17 @@ def relaxed_window(points, usable, fps: float, *, seconds: float = 0.5, mouth=No
     usable = np.asarray(usable, dtype=bool)
     if not usable.any():
         raise ValueError("no usable frame to choose a neutral from")
-    median = np.median(p[usable], axis=0)
-    spread = np.sqrt(((p - median) ** 2).sum(-1).mean(-1))
-    speed = np.r_[0.0, np.sqrt(((p[1:] - p[:-1]) ** 2).sum(-1).mean(-1)) * fps]
+    seen = np.flatnonzero(usable)
+    # The median face of at most _MEDIAN_FRAMES frames spread over the performance: as good a guide
+    # to rest, and what it holds does not grow with the video.
+    median = np.median(p[seen[np.linspace(0, len(seen) - 1, min(len(seen), _MEDIAN_FRAMES)).astype(int)]], axis=0)
+    spread, speed = np.empty(len(p)), np.zeros(len(p))
+    for start in range(0, len(p), _BLOCK):
+        block = p[start:start + _BLOCK]
+        spread[start:start + len(block)] = np.sqrt(((block - median) ** 2).sum(-1).mean(-1))
+        before = p[max(start - 1, 0):start + len(block) - 1]
+        steps = np.sqrt(((block[len(block) - len(before):] - before) ** 2).sum(-1).mean(-1)) * fps
+        speed[start + len(block) - len(steps):start + len(block)] = steps
     score = spread + 0.1 * speed / max(fps, 1.0)
     if mouth is not None:
         gap = np.asarray(mouth, dtype=np.float64)
