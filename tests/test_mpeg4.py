@@ -12,6 +12,17 @@ def test_tables_have_every_fap_and_feature_point():
         assert all(p in fps.names for p in fap_points)
 
 
+def test_the_shared_tables_are_frozen():
+    """fap_table() is parsed once and shared: a caller cannot change it for everyone else."""
+    faps = fap_table()
+    for name in ("bidirectional", "direction", "quant_step", "i_min", "i_max", "p_min", "p_max"):
+        with pytest.raises(ValueError, match="read-only"):
+            getattr(faps, name)[0] = 0
+    assert fap_table().direction[2].tolist() == [0, -1, 0]
+    assert all(isinstance(getattr(faps, n), tuple) for n in ("names", "feature_points", "units"))
+    assert all(isinstance(getattr(feature_points(), n), tuple) for n in ("names", "descriptions", "sides", "moved_by"))
+
+
 def test_known_rows_of_table_c1():
     faps = fap_table()
     n = faps.number("open_jaw")

@@ -9,9 +9,12 @@ feature point falls between mesh vertices the nearest vertex along the same cont
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from types import MappingProxyType
+
 __all__ = ["FEATURE_POINT_LANDMARK", "IBUG68_LANDMARK"]
 
-FEATURE_POINT_LANDMARK: dict[str, int] = {
+FEATURE_POINT_LANDMARK: Mapping[str, int] = MappingProxyType({  # read-only: a shared table
     # chin and inner lips
     "2.1": 152, "2.2": 13, "2.3": 14, "2.4": 308, "2.5": 78, "2.6": 311, "2.7": 81, "2.8": 402, "2.9": 178,
     "2.10": 199, "2.11": 400, "2.12": 176, "2.13": 397, "2.14": 172,
@@ -28,7 +31,7 @@ FEATURE_POINT_LANDMARK: dict[str, int] = {
     # nose
     "9.1": 294, "9.2": 64, "9.3": 4, "9.4": 98, "9.5": 327, "9.6": 193, "9.7": 417, "9.12": 197,
     "9.13": 437, "9.14": 217, "9.15": 2,
-}
+})
 
 # The 68-point iBUG / Multi-PIE layout (dlib, OpenFace): jaw 0-16 (subject's right ear to left),
 # brows 17-26, nose 27-35, eyes 36-47, outer lips 48-59, inner lips 60-67. Brows, nose, eyes and lips

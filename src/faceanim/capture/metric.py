@@ -37,12 +37,18 @@ class Camera:
 @dataclass(frozen=True, eq=False)
 class CanonicalFace:
     """MediaPipe's canonical face: ``vertices (468, 3)`` cm, ``triangles (898, 3)``, ``uv (468, 2)``,
-    and the Procrustes ``weights (468,)`` (zero for landmarks that move with expression)."""
+    and the Procrustes ``weights (468,)`` (zero for landmarks that move with expression). Read-only:
+    :func:`canonical_face` shares one with every caller."""
 
     vertices: np.ndarray
     triangles: np.ndarray
     uv: np.ndarray
     weights: np.ndarray
+
+    def __post_init__(self):
+        for name in ("vertices", "triangles", "uv", "weights"):
+            value = getattr(self, name)
+            object.__setattr__(self, name, as_array(value, name, dtype=value.dtype, frozen=True))
 
 
 @cache

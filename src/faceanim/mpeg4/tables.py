@@ -1,5 +1,7 @@
 """The MPEG-4 face tables (ISO/IEC 14496-2 Table C-1 and Figure 2) as package data, read once.
 
+Each table is parsed once and shared, so it is frozen: tuples, and read-only arrays.
+
 The CSV files in ``data/`` are copies of ``shared/mpeg4/faps.csv`` and ``fdp_points.csv``; their
 README there gives the sources and where sources disagree. Axes follow MPEG-4: +X is the face's own
 left, +Y up, +Z out of the face.
@@ -13,6 +15,8 @@ from functools import cache
 from importlib import resources
 
 import numpy as np
+
+from ..validation import as_array
 
 __all__ = ["FapTable", "FeaturePointTable", "fap_table", "feature_points", "FAP_COUNT"]
 
@@ -50,6 +54,8 @@ class FapTable:
     i_min, i_max, p_min, p_max : (68,) float64
         I- and P-frame bounds as printed, in quantised units (NaN where none is printed); the range in
         FAPU is the bound times ``quant_step`` (see ``shared/mpeg4/fapu.md`` section 5).
+
+    The arrays are read-only: the table is shared by every caller of :func:`fap_table`.
     """
 
     names: tuple[str, ...]
@@ -62,6 +68,11 @@ class FapTable:
     i_max: np.ndarray
     p_min: np.ndarray
     p_max: np.ndarray
+
+    def __post_init__(self):
+        for name in ("bidirectional", "direction", "quant_step", "i_min", "i_max", "p_min", "p_max"):
+            value = getattr(self, name)
+            object.__setattr__(self, name, as_array(value, name, dtype=value.dtype, finite=False, frozen=True))
 
     def number(self, name: str) -> int:
         """FAP number (1-68) of a name.

@@ -10,7 +10,9 @@ the AU that makes it is added and the reason given. Intensities follow the proto
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 
 from ..errors import InputError
 from .facs import check_intensity
@@ -20,12 +22,17 @@ __all__ = ["Emotion", "EMOTIONS", "emotion_recipe"]
 
 @dataclass(frozen=True)
 class Emotion:
+    """An emotion's AU recipe (code -> intensity, read-only) and where the recipe comes from."""
+
     name: str
-    recipe: dict
+    recipe: Mapping[str, float]
     source: str
 
+    def __post_init__(self):
+        object.__setattr__(self, "recipe", MappingProxyType(dict(self.recipe)))
 
-EMOTIONS: dict[str, Emotion] = {e.name: e for e in (
+
+EMOTIONS: Mapping[str, Emotion] = MappingProxyType({e.name: e for e in (
     Emotion("joy", {"6": 0.8, "12": 1.0, "25": 0.5},
             "EMFACS 6+12; MPEG-4 Annex 3 'the mouth is open' adds 25"),
     Emotion("sadness", {"1": 0.8, "4": 0.5, "15": 0.8, "17": 0.3, "43": 0.2},
@@ -38,7 +45,7 @@ EMOTIONS: dict[str, Emotion] = {e.name: e for e in (
             "EMFACS 9+15+16; MPEG-4 'the upper lip is raised' adds 10"),
     Emotion("surprise", {"1": 0.9, "2": 0.9, "5": 0.25, "26": 0.8},
             "EMFACS 1+2+5B+26; MPEG-4 'the jaw is opened'"),
-)}
+)})
 
 
 def emotion_recipe(name: str, intensity: float = 1.0) -> dict:

@@ -20,9 +20,11 @@ from __future__ import annotations
 import json
 import re
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
+from types import MappingProxyType
 
 from ..errors import InputError
 from .muscles import Gaze, Inflation, LinearMuscle, Rotator, Sphincter, Translator
@@ -100,9 +102,10 @@ _AUS = (
     ActionUnit(63, "Eyes up", (("gaze_up", 1.0),), sided=False),
     ActionUnit(64, "Eyes down", (("gaze_up", -1.0),), sided=False),
 )
-ACTION_UNITS: dict[int, ActionUnit] = {au.number: au for au in _AUS}
+ACTION_UNITS: Mapping[int, ActionUnit] = MappingProxyType({au.number: au for au in _AUS})  # read-only tables
 
-INTENSITY_LETTERS = {"A": (0.0, 0.15), "B": (0.15, 0.35), "C": (0.35, 0.65), "D": (0.65, 0.9), "E": (0.9, 1.0)}
+INTENSITY_LETTERS = MappingProxyType({"A": (0.0, 0.15), "B": (0.15, 0.35), "C": (0.35, 0.65), "D": (0.65, 0.9),
+                                      "E": (0.9, 1.0)})
 MAX_INTENSITY = 2.0
 _CODE = re.compile(r"^(?:AU)?0*(\d+)([LR]?)$", re.IGNORECASE)
 
@@ -156,7 +159,7 @@ def parse_recipe(text) -> dict[str, float]:
     >>> parse_recipe("AU06:0.8, 12L:C")
     {'6': 0.8, '12L': 0.5}
     """
-    items = text.items() if isinstance(text, dict) else [
+    items = text.items() if isinstance(text, Mapping) else [
         part.split(":", 1) if ":" in part else (part, "") for part in str(text).split(",") if part.strip()]
     recipe: dict[str, float] = {}
     for code, value in items:
