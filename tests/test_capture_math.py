@@ -14,7 +14,7 @@ from faceanim.capture.neutral import parse_neutral, relaxed_window
 from faceanim.capture.smoothing import OneEuro, jitter, one_euro
 from faceanim.errors import InputError
 from faceanim.geometry.align import batch_procrustes, weighted_procrustes
-from faceanim.motion import Motion, clip_to_range, head_angles, motion_to_faps
+from faceanim.motion import EYEBALL_RADIUS_ES0, Motion, clip_to_range, head_angles, motion_to_faps
 from faceanim.mpeg4 import Fapu, fap_table, feature_points
 
 
@@ -132,6 +132,17 @@ def test_head_angles_follow_mpeg4_words():
     np.testing.assert_allclose(head_angles(R[None])[0], [-0.2, 0.3, 0.1], atol=1e-12)
 
 
+def test_the_canonical_face_and_landmark_tables_are_frozen():
+    from faceanim.capture.landmarks import FEATURE_POINT_LANDMARK
+
+    face = canonical_face()
+    for name in ("vertices", "triangles", "uv", "weights"):
+        with pytest.raises(ValueError, match="read-only"):
+            getattr(face, name)[0] = 0
+    with pytest.raises(TypeError):
+        FEATURE_POINT_LANDMARK["2.1"] = 0
+
+
 def small_motion(displace: dict, frames=3):
     names = ("2.1", "2.2", "2.3", "8.3", "3.5", "3.6")
     neutral = np.zeros((len(names), 3))
@@ -150,7 +161,7 @@ def test_motion_to_faps_known_answers():
     # the lower lip rode down with the jaw: relative to the jaw it did not move
     assert f.values[1, table.number("raise_b_midlip") - 1] == pytest.approx(0)
     assert f.values[0].max() == 0 and f.mask[:, 2].all()
-    gaze = motion_to_faps(small_motion({"3.5": [0.6, 0, 0]}))
+    gaze = motion_to_faps(small_motion({"3.5": [0.5 * EYEBALL_RADIUS_ES0 * 6.0, 0, 0]}))  # half the radius
     assert gaze.values[1, table.number("yaw_l_eyeball") - 1] == pytest.approx(np.arcsin(0.5) / 1e-5)
 
 

@@ -9,23 +9,27 @@ the face), rigid head motion removed and kept apart as a pose per frame.
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .mpeg4 import ANGLE_UNIT, FAP_COUNT, Fapu, fap_table
 from .mpeg4.fapstream import FapStream, fap_ranges
+from .mpeg4.fapu import HUMAN_ES0
 from .mpeg4.jaw import JAW_CARRIED, jaw_hinge, jaw_swing
-from .validation import as_array
+from .validation import as_array, restore_frozen
 
-__all__ = ["Motion", "motion_to_faps", "clip_to_range", "head_angles", "relative_head_rotations", "EYEBALL_RADIUS_CM"]
+__all__ = ["Motion", "motion_to_faps", "clip_to_range", "head_angles", "relative_head_rotations", "EYEBALL_RADIUS_ES0"]
 
-EYEBALL_RADIUS_CM = 1.2  # an adult eyeball's radius; turns iris shifts into gaze angles
+# An adult eyeball's radius (1.2 cm) over a typical eye separation (HUMAN_ES0, 6.3 cm): the eyeball in
+# the face's own yardstick, so iris shifts turn into the same gaze angles whatever the face's unit.
+EYEBALL_RADIUS_ES0 = 0.012 / HUMAN_ES0
 
 
 @dataclass(frozen=True, eq=False)
 class Motion:
-    """Named control points moving over time.
+    """Named control points moving over time; immutable (read-only arrays) and checked on construction.
 
     Parameters
     ----------
@@ -41,6 +45,17 @@ class Motion:
         Measured on ``neutral``.
     valid : (T,) bool, optional
         Frames with data; all by default.
+
+    Positions and displacements are in the model units of the face they were measured on (the unit
+    of ``fapu``; centimetres for a tracked video).
+
+    Raises
+    ------
+    ValueError
+        Repeated names, an array of the wrong shape, non-finite displacements on a valid frame or a
+        non-positive fps (the field is named).
+    TypeError
+        A name that is not a string, or ``fapu`` not a Fapu.
     """
 
     names: tuple[str, ...]
@@ -53,21 +68,28 @@ class Motion:
 
     def __post_init__(self):
         names = tuple(self.names)
+        if not all(isinstance(n, str) for n in names):
+            raise TypeError(f"names must be strings, got {next(n for n in names if not isinstance(n, str))!r}")
         if len(set(names)) != len(names):
             raise ValueError("control point names must be distinct")
-        neutral = as_array(self.neutral, "neutral", shape=(len(names), 3))
-        d = as_array(self.displacements, "displacements", shape=("T", len(names), 3), finite=False)
-        pose = as_array(self.pose, "pose", shape=(len(d), 4, 4))
-        valid = np.ones(len(d), bool) if self.valid is None else np.asarray(self.valid, dtype=bool)
-        if valid.shape != (len(d),):
-            raise ValueError(f"valid must have shape ({len(d)},), got {valid.shape}")
+        if not isinstance(self.fapu, Fapu):
+            raise TypeError(f"fapu must be a Fapu, got {type(self.fapu).__name__}")
+        neutral = as_array(self.neutral, "neutral", shape=(len(names), 3), frozen=True)
+        d = as_array(self.displacements, "displacements", shape=("T", len(names), 3), finite=False, frozen=True)
+        pose = as_array(self.pose, "pose", shape=(len(d), 4, 4), frozen=True)
+        valid = np.ones(len(d), bool) if self.valid is None else self.valid
+        valid = as_array(valid, "valid", shape=(len(d),), dtype=bool, frozen=True)
         if not np.isfinite(d[valid]).all():
             raise ValueError("displacements must be finite on valid frames")
-        if not np.isfinite(self.fps) or self.fps <= 0:
-            raise ValueError(f"fps must be positive, got {self.fps}")
+        if isinstance(self.fps, bool) or not isinstance(self.fps, numbers.Real) or not (
+                np.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"fps must be a positive number, got {self.fps!r}")
         for field, value in (("names", names), ("neutral", neutral), ("displacements", d), ("pose", pose),
                              ("valid", valid), ("fps", float(self.fps))):
             object.__setattr__(self, field, value)
+
+    def __setstate__(self, state):
+        restore_frozen(self, state)
 
     def __len__(self) -> int:
         return len(self.displacements)
@@ -124,8 +146,10 @@ def motion_to_faps(motion: Motion, *, name: str = "faceanim") -> FapStream:
     (``shared/mpeg4/faps.csv``). The jaw is measured as a player will play it: ``open_jaw`` is the
     chin's drop, and ``thrust_jaw`` and the FAPs of the points the jaw carries (:data:`JAW_CARRIED`)
     are what is left after the swing that drop implies (:mod:`.mpeg4.jaw`). Eyeball yaw and pitch
-    (23-26) come from the pupils' shift in the head frame over an eyeball of
-    :data:`EYEBALL_RADIUS_CM` (so the neutral gaze is the zero); head pitch, yaw and roll (48-50) from
+    (23-26) come from the pupils' shift in the head frame over an eyeball of radius
+    :data:`EYEBALL_RADIUS_ES0` times the face's ES0, so the neutral gaze is the zero and the angle
+    does not depend on the motion's unit (a face in metres and in millimetres look the same way);
+    head pitch, yaw and roll (48-50) from
     the pose relative to the first valid frame's. FAPs whose points the motion lacks are absent (mask
     False); invalid frames carry no FAPs.
     """
@@ -149,7 +173,7 @@ def motion_to_faps(motion: Motion, *, name: str = "faceanim") -> FapStream:
     eyes = {"l": ("3.5", "yaw_l_eyeball", "pitch_l_eyeball"), "r": ("3.6", "yaw_r_eyeball", "pitch_r_eyeball")}
     for pupil, yaw_name, pitch_name in eyes.values():
         if pupil in lookup:
-            shift = motion.displacements[:, lookup[pupil]] / EYEBALL_RADIUS_CM
+            shift = motion.displacements[:, lookup[pupil]] / (EYEBALL_RADIUS_ES0 * motion.fapu.es0)
             for fap, component, sign in ((yaw_name, 0, 1.0), (pitch_name, 1, -1.0)):
                 j = table.number(fap) - 1
                 values[:, j] = sign * np.arcsin(np.clip(shift[:, component], -1, 1)) / ANGLE_UNIT
