@@ -94,3 +94,24 @@ def test_missing_input_is_one_line(files, capsys):
     (tmp_path / "src.obj").unlink()
     assert run(tmp_path) == 2
     assert capsys.readouterr().err.strip().endswith("src.obj: no such file")
+
+
+def test_a_reader_that_leaves_early_ends_the_command_quietly(tmp_path):
+    """``faceanim fap-info F | head -1``: the reader closes the pipe before the summary is printed; the
+    command ends as a signal would (128 + SIGPIPE), without a traceback."""
+    import signal
+    import subprocess
+    import sys
+
+    from faceanim.mpeg4.fapfile import write_fap
+    from faceanim.mpeg4.fapstream import FapStream
+
+    fap = tmp_path / "f.fap"
+    mask = np.zeros((3, 68), dtype=bool)
+    mask[:, 2:] = True  # every FAP but the viseme and expression: a long summary
+    write_fap(fap, FapStream(np.zeros((3, 68)), mask, 25.0))
+    child = subprocess.Popen([sys.executable, "-m", "faceanim.cli", "fap-info", str(fap)], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE)
+    child.stdout.close()  # long before the interpreter has started and imported faceanim
+    stderr = child.stderr.read().decode()
+    assert child.wait(timeout=60) == 128 + signal.SIGPIPE and "Traceback" not in stderr, stderr

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import signal
 import sys
 import threading
@@ -198,7 +199,11 @@ def main(argv=None) -> int:
         print(f"faceanim: error: {exc}", file=sys.stderr)
         return 2
     if said:
-        print(said)
+        try:
+            print(said, flush=True)
+        except BrokenPipeError:  # the reader left (``| head``): quiet, as for any signal, 128 + SIGPIPE
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+            return 128 + signal.SIGPIPE
     return 0
 
 
