@@ -37,8 +37,9 @@ STEPS = (
     ("placing control points", "placement: control points on the target (render, track, cast back)"),
     ("tracking done", "motion: neutral, head frame, One Euro filter, FAPs"),
     ("tracking", "tracking: MediaPipe through the video"),
-    ("following the tracked motion", "deformation: the motion followed on the target"),
-    ("writing", "glTF writing: morph targets, animation"),
+    ("following the tracked motion", "deformer set-up: parts, surface-aware interpolation, fold relaxer"),
+    ("deforming", "deformation: the motion followed on the target, frame by frame, kept in a temporary file"),
+    ("writing", "glTF writing: morph targets (two streaming passes), animation"),
 )
 
 
