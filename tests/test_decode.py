@@ -1,4 +1,5 @@
 import json
+import re
 
 import numpy as np
 import pytest
@@ -234,3 +235,26 @@ def test_the_jaw_swings_from_behind_the_chin_even_when_its_corners_are_placed_in
     names, d = fap_displacements(stream_of({(1, "open_jaw"): 1024}), odd)
     chin = d[1, names.index("2.1")]
     assert chin[1] == pytest.approx(-target.fapu.mns0) and chin[2] < 0  # down by the FAP, and backwards
+
+
+@pytest.mark.parametrize("vertices, says", [
+    ("v 0 0 0\nv 0 0 0\nv 0 0 0\n", "span 0 in one direction and 0 across it"),  # a point
+    ("v 0 0 0\nv 1 0 0\nv 2 0 0\n", "span 2 in one direction and 0 across it"),  # a line
+    ("v 0 0 0\nv 1e308 0 0\nv 0 1e308 0\n", "coordinates as large as 1e\\+308"),  # squares overflow
+])
+def test_a_target_no_face_can_be_is_refused_naming_its_file(tmp_path, capsys, vertices, says):
+    """Such meshes used to reach the placement's camera: "world_to_camera must be finite", naming nothing."""
+    from faceanim.cli import main
+
+    mesh = tmp_path / "odd.obj"
+    mesh.write_text(vertices + "f 1 2 3\n")
+    fap = tmp_path / "f.fap"
+    mask = np.zeros((2, FAP_COUNT), dtype=bool)
+    mask[:, 2] = True
+    from faceanim.mpeg4.fapfile import write_fap
+
+    write_fap(fap, FapStream(np.zeros((2, FAP_COUNT)), mask, 25.0))
+    assert main(["decode", str(fap), "--target", str(mesh), "-o", str(tmp_path / "o.glb")]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and re.search(f"{re.escape(str(mesh))}: .*{says}", error), error
+    assert not (tmp_path / "o.glb").exists()

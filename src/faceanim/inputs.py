@@ -32,6 +32,7 @@ def load_target(mesh_path=None, *, points=None, fdp=None, progress=None):
         as_progress(progress).status("making the avatar of the embedded portrait (no --target given)")
         return avatar_target()
     mesh = read_mesh(mesh_path)
+    _check_extent(mesh, mesh_path)
     if points is not None:
         return target_from_json(mesh, points)
     if fdp is not None:
@@ -41,6 +42,24 @@ def load_target(mesh_path=None, *, points=None, fdp=None, progress=None):
         return Target.from_points(mesh, carried, source=str(mesh_path))
     as_progress(progress).status(f"placing control points on {Path(mesh_path).name} (rendered, tracked, cast back)")
     return auto_target(mesh)
+
+
+_LARGEST_COORDINATE = 1e9  # model units; far beyond any face in any unit, far inside what squares hold
+
+
+def _check_extent(mesh, path) -> None:
+    """Refuse, naming the file, a mesh no face can be: one spanning fewer than two directions (a point,
+    a line), or with coordinates so large that the geometry's squared distances overflow."""
+    import numpy as np
+
+    largest = float(np.abs(mesh.vertices).max(initial=0.0))
+    if largest > _LARGEST_COORDINATE:
+        raise InputError(f"{path}: has coordinates as large as {largest:.3g}; a face's are far below "
+                         f"{_LARGEST_COORDINATE:.0e} in any unit (scale the mesh)")
+    extent = np.sort(np.ptp(mesh.vertices, axis=0))
+    if extent[1] <= 1e-12 * max(extent[2], 1e-300):
+        raise InputError(f"{path}: its vertices span {extent[2]:.3g} in one direction and "
+                         f"{extent[1]:.3g} across it; a face needs a surface, not a line or a point")
 
 
 def capture_motion(source, *, neutral=None, smoothing=True, progress=None):
