@@ -185,7 +185,7 @@ def test_the_avatar_round_trips_with_its_parts_texture_and_units(tmp_path):
     target = avatar_target()
     mesh = target.mesh
     assert mesh.parts is not None and metres_per_unit(target.fapu) == 0.01  # a face in centimetres
-    write_glb(tmp_path / "face.glb", mesh, extras={"points": target.points}, metres_per_unit=0.01)
+    write_glb(tmp_path / "face.glb", mesh, extras={"points": dict(target.points)}, metres_per_unit=0.01)
     back = read_mesh(tmp_path / "face.glb")
     np.testing.assert_allclose(back.vertices, mesh.vertices, atol=1e-5)
     np.testing.assert_array_equal(back.triangles, mesh.triangles)

@@ -198,7 +198,7 @@ def avatar(photo, output):
     output = Path(output)
     check_outputs({"-o": (output, ".glb")}, inputs={"PHOTO": photo})
     target = avatar_target(photo)
-    write_glb(output, target.mesh, extras={"points": target.points}, metres_per_unit=metres_per_unit(target.fapu))
+    write_glb(output, target.mesh, extras={"points": dict(target.points)}, metres_per_unit=metres_per_unit(target.fapu))
     return target
 
 

@@ -8,14 +8,17 @@ from __future__ import annotations
 
 import json
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from types import MappingProxyType
 
 import numpy as np
 
 from .errors import FileFormatError, InputError
 from .geometry.mesh import Mesh
 from .mpeg4 import Fapu, fapu_from_points, feature_points
+from .validation import restore_frozen
 
 __all__ = ["Target", "target_from_json", "target_from_fdp"]
 
@@ -24,20 +27,63 @@ __all__ = ["Target", "target_from_json", "target_from_fdp"]
 class Target:
     """A mesh with named control points (MPEG-4 feature points by number, ``"8.3"``) on its vertices.
 
-    ``points`` maps names to vertex ids; ``fapu`` is the face's FAPU (measured from the points when
-    not given: see :meth:`measure_fapu`).
+    Immutable and checked on construction, however it is made.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    points : mapping of str to int
+        Control-point names to vertex ids of ``mesh``; kept as a read-only mapping
+        (:class:`types.MappingProxyType`; ``dict(target.points)`` for a dict).
+    fapu : Fapu or None
+        The face's FAPU in the mesh's units (:meth:`from_points` measures it when not given, see
+        :func:`measure_fapu`); None for a mesh without the face points to measure it from, which
+        then cannot be decoded onto.
+
+    Raises
+    ------
+    TypeError
+        ``mesh`` is not a Mesh, ``fapu`` not a Fapu, a name not a string or an id not an integer.
+    ValueError
+        ``points`` names a vertex the mesh lacks.
     """
 
     mesh: Mesh
-    points: dict
-    fapu: Fapu
+    points: Mapping[str, int]
+    fapu: Fapu | None
+
+    def __post_init__(self):
+        if not isinstance(self.mesh, Mesh):
+            raise TypeError(f"mesh must be a Mesh, got {type(self.mesh).__name__}")
+        if self.fapu is not None and not isinstance(self.fapu, Fapu):
+            raise TypeError(f"fapu must be a Fapu or None, got {type(self.fapu).__name__}")
+        if not isinstance(self.points, Mapping):
+            raise TypeError(f"points must map names to vertex ids, got {type(self.points).__name__}")
+        V = len(self.mesh.vertices)
+        points = {}
+        for name, index in self.points.items():
+            if not isinstance(name, str):
+                raise TypeError(f"points must be named by strings, got {name!r}")
+            if isinstance(index, bool) or not isinstance(index, (int, np.integer)):
+                raise TypeError(f"points[{name!r}] must be an integer vertex id, got {index!r}")
+            if not 0 <= index < V:
+                raise ValueError(f"points[{name!r}] must lie in [0, {V}), got {index}")
+            points[name] = int(index)
+        object.__setattr__(self, "points", MappingProxyType(points))
+
+    def __getstate__(self):
+        return {**self.__dict__, "points": dict(self.points)}  # a mappingproxy does not pickle
+
+    def __setstate__(self, state):
+        restore_frozen(self, {**state, "points": MappingProxyType(dict(state["points"]))})
 
     @classmethod
     def from_points(cls, mesh: Mesh, points: dict, fapu: Fapu | None = None, *, source: str = "") -> Target:
         """Check ``points`` (name -> vertex id) against ``mesh`` and measure FAPU if not given."""
         where = f"{source}: " if source else ""
         V = len(mesh.vertices)
-        bad = {n: i for n, i in points.items() if not isinstance(i, (int, np.integer)) or not 0 <= int(i) < V}
+        bad = {n: i for n, i in points.items()
+               if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= int(i) < V}
         if bad:
             name, index = next(iter(bad.items()))
             raise InputError(f"{where}point {name} names vertex {index}, but the mesh has vertices 0-{V - 1}")
@@ -45,6 +91,7 @@ class Target:
         return cls(mesh, points, fapu or measure_fapu(mesh, points, source=source))
 
     def ids(self, names) -> np.ndarray:
+        """``(N,) int64`` vertex ids of the named points; an unknown name raises ``KeyError``."""
         return np.array([self.points[n] for n in names], dtype=np.int64)
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -10,15 +11,18 @@ import numpy as np
 
 from ..atomic import atomic_output
 from ..errors import FileFormatError, InputError
+from ..validation import as_array, restore_frozen
 from .tracker import TrackerOptions, open_tracker
 from .video import open_frames
 
 __all__ = ["Track", "track_video", "fill_gaps"]
 
+_MAX_SIZE = 1 << 20  # pixels along a frame's side: far beyond any video, well inside int32
+
 
 @dataclass(frozen=True, eq=False)
 class Track:
-    """Raw tracker output for a video.
+    """Raw tracker output for a video; immutable (read-only arrays) and checked on construction.
 
     Attributes
     ----------
@@ -39,6 +43,14 @@ class Track:
     blendshapes : (T, 52) float64, optional
         MediaPipe's blendshape scores per frame (Tasks tracker only; NaN where no face).
     blendshape_names : tuple of str
+
+    Raises
+    ------
+    ValueError
+        An array of the wrong shape, frame counts that disagree, a frame both found and filled, NaN
+        landmarks on a frame with a face, or a non-positive fps or frame size (the field is named).
+    TypeError
+        A field of the wrong type.
     """
 
     landmarks: np.ndarray
@@ -51,6 +63,48 @@ class Track:
     source: str = ""
     blendshapes: np.ndarray | None = None
     blendshape_names: tuple[str, ...] = ()
+
+    def __post_init__(self):
+        landmarks = as_array(self.landmarks, "landmarks", shape=("T", "L", 3), finite=False, min_length=1,
+                             frozen=True)
+        T = len(landmarks)
+        if landmarks.shape[1] == 0:
+            raise ValueError("landmarks must have at least 1 landmark per frame, got shape (T, 0, 3)")
+        valid = as_array(self.valid, "valid", shape=(T,), dtype=bool, frozen=True)
+        filled = as_array(self.filled, "filled", shape=(T,), dtype=bool, frozen=True)
+        both = np.flatnonzero(valid & filled)
+        if both.size:
+            raise ValueError(f"filled must mark only frames without a face, got frame {both[0]} both valid and filled")
+        usable = valid | filled
+        missing = np.flatnonzero(usable & ~np.isfinite(landmarks).all(axis=(1, 2)))
+        if missing.size:
+            raise ValueError(f"landmarks must be finite on frames with a face (valid or filled), got NaN or "
+                             f"infinity on frame {missing[0]}")
+        times = as_array(self.times, "times", shape=(T,), frozen=True)
+        if isinstance(self.fps, bool) or not isinstance(self.fps, numbers.Real) or not (
+                np.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"fps must be a positive number, got {self.fps!r}")
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            whole = isinstance(value, numbers.Integral) or (
+                isinstance(value, numbers.Real) and float(value).is_integer())
+            if isinstance(value, bool) or not whole or not 1 <= value <= _MAX_SIZE:
+                raise ValueError(f"{name} must be a whole number of pixels from 1 to {_MAX_SIZE}, got {value!r}")
+            object.__setattr__(self, name, int(value))
+        if not isinstance(self.source, str):
+            raise TypeError(f"source must be a str, got {type(self.source).__name__}")
+        names = tuple(self.blendshape_names)
+        if not all(isinstance(n, str) for n in names):
+            raise TypeError("blendshape_names must be strings")
+        if self.blendshapes is not None:
+            shapes = as_array(self.blendshapes, "blendshapes", shape=(T, len(names)), finite=False, frozen=True)
+            object.__setattr__(self, "blendshapes", shapes)
+        for name, value in (("landmarks", landmarks), ("valid", valid), ("filled", filled), ("times", times),
+                            ("fps", float(self.fps)), ("blendshape_names", names)):
+            object.__setattr__(self, name, value)
+
+    def __setstate__(self, state):
+        restore_frozen(self, state)
 
     def __len__(self) -> int:
         return len(self.valid)
@@ -90,7 +144,7 @@ class Track:
                 names = tuple(str(n) for n in data["blendshape_names"]) if "blendshape_names" in data else ()
                 return cls(data["landmarks"], data["valid"], data["filled"], data["times"], float(data["fps"]),
                            int(data["width"]), int(data["height"]), str(data["source"]), shapes, names)
-        except (KeyError, ValueError, OSError) as exc:
+        except (KeyError, TypeError, ValueError, OSError) as exc:
             raise FileFormatError(path, f"is not a faceanim track ({exc})") from None
 
 
