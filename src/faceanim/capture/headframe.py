@@ -135,4 +135,5 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
     displacements[~usable] = np.nan
     del points  # one (T, L, 3) array fewer held while the jaw's depth is corrected
     displacements = correct_jaw_depth(rest, displacements)
+    displacements.flags.writeable = False  # handed over: the Motion takes it uncopied
     return Motion(names, rest, displacements, pose, track.fps, fapu, valid=usable)

@@ -163,6 +163,7 @@ def fill_gaps(track: Track, max_gap: float = 0.2) -> Track:
             s = k / (last - first + 2)
             landmarks[frame] = (1 - s) * before + s * after
         filled[first:last + 1] = True
+    landmarks.flags.writeable = filled.flags.writeable = False  # handed over: the Track takes them uncopied
     return replace(track, landmarks=landmarks, filled=filled)
 
 
@@ -209,6 +210,7 @@ def track_video(path, *, options: TrackerOptions | None = None, max_gap: float =
         for i, row in enumerate(shapes):
             if row is not None:
                 blendshapes[i] = row
+    landmarks.flags.writeable = False  # handed over: the Track takes it uncopied
     track = Track(landmarks, np.array(valid), np.zeros(len(frames), bool), np.array(times, dtype=np.float64),
                   fps, width, height, str(path), blendshapes, tuple(names))
     return fill_gaps(track, max_gap)
