@@ -72,7 +72,12 @@ def restabilise(points: np.ndarray, pose: np.ndarray, rest: np.ndarray, usable: 
     face at rest: a person's expression changes how it fits. Fitted to the person's own neutral, the
     skull's points stay put and only expression remains.
     """
-    points, pose = points.copy(), pose.copy()
+    return _restabilise_in_place(points.copy(), pose.copy(), rest, usable)
+
+
+def _restabilise_in_place(points: np.ndarray, pose: np.ndarray, rest: np.ndarray, usable: np.ndarray):
+    """:func:`restabilise`, writing into ``points`` and ``pose`` (a capture's own arrays, so that a long
+    video's landmarks are not held twice)."""
     usable_frames = np.flatnonzero(usable)
     weights = _skull_weights()
     for start in range(0, len(usable_frames), _BLOCK):  # temporaries bounded by a block, not the video
@@ -102,10 +107,12 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
         A neutral measured elsewhere (for example from a separate image), in the head frame;
         overrides ``neutral``.
     """
+    # One (T, L, 3) array, made by head_frame and then changed in place, step by step: a long video's
+    # landmarks are held once here (and once in the track), not once per step.
     points, pose = head_frame(track)
     usable = track.usable
     if smoothing is not None:
-        points = one_euro(points, track.times, smoothing)
+        one_euro(points, track.times, smoothing, out=points)
         translation = one_euro(pose[:, :3, 3][:, None], track.times, smoothing)[:, 0]
         linear = one_euro(pose[:, :3, :3], track.times, OneEuro(smoothing.min_cutoff, 0.0, smoothing.d_cutoff))
         pose = pose.copy()
@@ -122,7 +129,7 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
         if not chosen.any():
             raise InputError(f"the neutral frames {start}:{end} hold no tracked face")
         rest = points[start:end][chosen].mean(axis=0)
-    points, pose = restabilise(points, pose, rest, usable)
+    points, pose = _restabilise_in_place(points, pose.copy(), rest, usable)
     if neutral_points is None:
         rest = points[start:end][chosen].mean(axis=0)
     names = landmark_names(points.shape[1])
@@ -131,9 +138,9 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
         fapu = fapu_from_points(lookup)
     except ValueError as exc:
         raise InputError(f"the neutral face gives no usable FAPU ({exc})") from None
-    displacements = points - rest
+    displacements = points
+    displacements -= rest
     displacements[~usable] = np.nan
-    del points  # one (T, L, 3) array fewer held while the jaw's depth is corrected
-    displacements = correct_jaw_depth(rest, displacements)
+    correct_jaw_depth(rest, displacements, out=displacements)
     displacements.flags.writeable = False  # handed over: the Motion takes it uncopied
     return Motion(names, rest, displacements, pose, track.fps, fapu, valid=usable)

@@ -38,8 +38,9 @@ def jaw_carried(rest: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return carried, chin, hinge
 
 
-def correct_jaw_depth(rest: np.ndarray, displacements: np.ndarray) -> np.ndarray:
-    """``displacements (T, L, 3)`` with the depth of the jaw's points made to agree with the chin's drop.
+def correct_jaw_depth(rest: np.ndarray, displacements: np.ndarray, *, out: np.ndarray | None = None) -> np.ndarray:
+    """``displacements (T, L, 3)`` with the depth of the jaw's points made to agree with the chin's drop
+    (written into ``out`` when given: the displacements themselves may be).
 
     Per frame, the jaw's turn about the hinge (a small angle about the x axis) is fitted twice over
     the chin points: once to their vertical motion, once to their depth. The carried points' depth
@@ -47,7 +48,12 @@ def correct_jaw_depth(rest: np.ndarray, displacements: np.ndarray) -> np.ndarray
     points beside and just below the mouth corners (:func:`_carried_share`). A face whose chin does
     not move (a smile, a blink) is left unchanged. NaN frames stay NaN.
     """
-    d = np.array(displacements, dtype=np.float64)
+    if out is None:
+        d = np.array(displacements, dtype=np.float64)
+    else:
+        d = out
+        if d is not displacements:
+            d[...] = displacements
     _, chin, hinge = jaw_carried(rest)
     if len(chin) == 0:
         return d

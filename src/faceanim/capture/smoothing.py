@@ -33,8 +33,10 @@ def _alpha(cutoff, dt):
     return 1.0 / (1.0 + tau / dt)
 
 
-def one_euro(signal, times, settings: OneEuro = OneEuro()) -> np.ndarray:
-    """Filter ``signal (T, ...)`` sampled at ``times (T,)`` seconds; NaN frames restart the filter.
+def one_euro(signal, times, settings: OneEuro = OneEuro(), *, out: np.ndarray | None = None) -> np.ndarray:
+    """Filter ``signal (T, ...)`` sampled at ``times (T,)`` seconds; NaN frames restart the filter
+    (and come out all NaN). ``out``, a float64 array of the signal's shape (the signal itself is
+    allowed: each frame is read before it is written), receives the result.
 
     The speed that sets the cut-off is taken per point (the norm over the last axis), so the three
     coordinates of a landmark are filtered alike.
@@ -46,11 +48,15 @@ def one_euro(signal, times, settings: OneEuro = OneEuro()) -> np.ndarray:
     """
     x = np.asarray(signal, dtype=np.float64)
     times = np.asarray(times, dtype=np.float64)
-    out = np.full_like(x, np.nan)
+    if out is None:
+        out = np.empty_like(x)
+    elif out.shape != x.shape or out.dtype != np.float64:
+        raise ValueError(f"out must be a float64 array of shape {x.shape}, got {out.dtype} {out.shape}")
     previous = derivative = None
     for t in range(len(x)):
         if not np.isfinite(x[t]).all():
             previous = None
+            out[t] = np.nan
             continue
         if previous is None:
             out[t], previous, derivative = x[t], x[t], np.zeros_like(x[t])

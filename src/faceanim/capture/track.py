@@ -204,6 +204,7 @@ def track_video(path, *, options: TrackerOptions | None = None, max_gap: float =
     for i, face in enumerate(frames):
         if face is not None:
             landmarks[i] = face
+            frames[i] = None  # let go of each frame as it is copied: the landmarks are not held twice
     blendshapes = None
     if model is not None and names:
         blendshapes = np.full((len(frames), len(names)), np.nan)
