@@ -3,7 +3,6 @@ each other, computes, and writes its output completely or not at all."""
 
 from __future__ import annotations
 
-import json
 import warnings
 from pathlib import Path
 
@@ -14,34 +13,68 @@ from .expressions import aus, express  # the expression jobs live in their own m
 from .geometry import read_mesh, write_mesh
 from .geometry.animation import spilled
 from .inputs import capture_motion, load_target, motion_of_track, target_unit
+from .jsonfile import read_json
 from .outputs import SEQUENCE_FOLDER, check_outputs
 from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
 
-__all__ = ["transfer", "read_pairs", "track", "encode", "fap_info", "avatar",
+__all__ = ["transfer", "read_pairs", "read_vertex_mask", "track", "encode", "fap_info", "avatar",
            "load_target", "decode", "animate", "view", "express", "aus"]
 
 
+def _is_id(value, upper: int = 2**63) -> bool:
+    """Whether a JSON value is a vertex id: an integer (not a boolean) in ``[0, upper)``."""
+    return isinstance(value, int) and not isinstance(value, bool) and 0 <= value < upper
+
+
 def read_pairs(path) -> tuple[np.ndarray, np.ndarray]:
-    """Read a correspondence file ``{"source": [ids], "target": [ids]}``."""
+    """Read a correspondence file ``{"source": [ids], "target": [ids]}``: two ``(K,) int64`` arrays of
+    vertex ids, ``K >= 1`` (checked against the meshes by :meth:`ControlPairs.checked`).
+
+    Raises
+    ------
+    InputError
+        The file is missing or cannot be read.
+    FileFormatError
+        Not UTF-8 JSON, not such an object, an id that is not a whole number from 0 (``true``,
+        ``1.5``, ``-1``, ``2**70``), lists of different lengths, or no pairs.
+    """
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: no such file")
-    try:
-        data = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise FileFormatError(path, f"is not valid JSON ({exc})", getattr(exc, "lineno", None)) from None
+    data = read_json(path)
     if not isinstance(data, dict) or not {"source", "target"} <= data.keys():
         raise FileFormatError(path, 'must be an object with "source" and "target" lists of vertex ids')
     lists = []
     for key in ("source", "target"):
         ids = data[key]
-        if not isinstance(ids, list) or not all(isinstance(i, int) and not isinstance(i, bool) for i in ids):
-            raise FileFormatError(path, f'"{key}" must be a list of integer vertex ids')
+        if not isinstance(ids, list) or not all(_is_id(i) for i in ids):
+            raise FileFormatError(path, f'"{key}" must be a list of integer vertex ids from 0')
         lists.append(np.asarray(ids, dtype=np.int64))
     if len(lists[0]) != len(lists[1]):
         counts = f'"source" has {len(lists[0])} ids but "target" has {len(lists[1])}'
         raise FileFormatError(path, f"{counts}; they must pair up")
+    if not len(lists[0]):
+        raise FileFormatError(path, "holds no pairs")
     return lists[0], lists[1]
+
+
+def read_vertex_mask(path, vertex_count: int) -> np.ndarray:
+    """Read a vertex mask file, a JSON list of vertex ids: ``(vertex_count,) bool``, True at those ids
+    (an id may repeat; an empty list allows no vertex).
+
+    Raises
+    ------
+    InputError
+        The file cannot be read.
+    FileFormatError
+        Not UTF-8 JSON, not a list, or an id that is not an integer in ``[0, vertex_count)``.
+    """
+    ids = read_json(path)
+    if not isinstance(ids, list) or not all(_is_id(i, vertex_count) for i in ids):
+        raise FileFormatError(path, f"must be a JSON list of target vertex ids in [0, {vertex_count})")
+    allowed = np.zeros(vertex_count, dtype=bool)
+    allowed[ids] = True
+    return allowed
 
 
 def transfer(source_neutral, source_expression, target, output, *, correspondence, method: str = "clone",
@@ -77,14 +110,7 @@ def transfer(source_neutral, source_expression, target, output, *, correspondenc
         raise InputError(f"{correspondence}: {exc}") from None
     allowed = None
     if mask is not None:
-        try:
-            ids = json.loads(Path(mask).read_text())
-        except (OSError, json.JSONDecodeError) as exc:
-            raise InputError(f"{mask}: cannot read the vertex mask ({exc})") from None
-        if not isinstance(ids, list) or not all(isinstance(i, int) and 0 <= i < len(dst.vertices) for i in ids):
-            raise InputError(f"{mask}: must be a JSON list of target vertex ids in [0, {len(dst.vertices)})")
-        allowed = np.zeros(len(dst.vertices), dtype=bool)
-        allowed[ids] = True
+        allowed = read_vertex_mask(mask, len(dst.vertices))
     if regions:
         unknown = [r for r in regions if r not in REGIONS]
         if unknown:

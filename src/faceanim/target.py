@@ -6,7 +6,6 @@ decodes onto a Target, the muscles of ``synth`` are placed by its feature points
 
 from __future__ import annotations
 
-import json
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -17,6 +16,7 @@ import numpy as np
 
 from .errors import FileFormatError, InputError
 from .geometry.mesh import Mesh
+from .jsonfile import read_json
 from .mpeg4 import Fapu, fapu_from_points, feature_points
 from .validation import restore_frozen
 
@@ -110,21 +110,35 @@ def measure_fapu(mesh: Mesh, points: dict, *, source: str = "") -> Fapu:
 
 
 def target_from_json(mesh: Mesh, path) -> Target:
-    """Control points from a JSON object ``{"8.3": vertex id, ...}`` (or ``{"points": {...}}``)."""
+    """Control points from a JSON object ``{"8.3": vertex id, ...}`` (or ``{"points": {...}}``).
+
+    Raises
+    ------
+    InputError
+        The file cannot be read, a vertex id is outside ``mesh``, or FAPU cannot be measured.
+    FileFormatError
+        Not UTF-8 JSON, not such an object, an unknown point name, or an id that is not an integer.
+    """
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except OSError as exc:
-        raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(path, f"is not valid JSON ({exc.msg})", exc.lineno) from None
+    data = read_json(path)
     data = data.get("points", data) if isinstance(data, dict) else data
     if not isinstance(data, dict) or not data:
         raise FileFormatError(path, 'must map feature-point names to vertex ids, like {"8.3": 1520}')
     unknown = [n for n in data if n not in feature_points().names and not n.startswith("mp")]
     if unknown:
         raise FileFormatError(path, f"unknown feature point {unknown[0]!r} (MPEG-4 names look like '8.3')")
+    for name, index in data.items():
+        if isinstance(index, bool) or not isinstance(index, int):
+            raise FileFormatError(path, f"point {name!r} must name a vertex by its integer id, got {_json(index)}")
     return Target.from_points(mesh, data, source=str(path))
+
+
+def _json(value) -> str:
+    """``value`` as it was written in JSON (``true``, ``2.0``), cut to 40 characters."""
+    import json
+
+    text = json.dumps(value)
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def target_from_fdp(mesh: Mesh, path) -> Target:
@@ -141,26 +155,36 @@ def target_from_fdp(mesh: Mesh, path) -> Target:
         raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
     except ET.ParseError as exc:
         raise FileFormatError(path, f"is not valid XML ({exc})", exc.position[0]) from None
+    except (LookupError, ValueError) as exc:  # an encoding Python does not know, or expat cannot use
+        raise FileFormatError(path, f"is not valid XML ({exc})") from None
     if root.tag != "xfdp":
         raise FileFormatError(path, f"is not an XfaceEd FDP file (root element <{root.tag}>, expected <xfdp>)")
     entries = list(root.iter("fdp"))
     submeshes = [fdp.get("affects") for fdp in entries]
-    main = max(set(submeshes), key=submeshes.count) if entries else None
+    main = max(set(submeshes), key=lambda s: (submeshes.count(s), s or "")) if entries else None
     points = {}
     for fdp in entries:
         if fdp.get("affects") != main:
             continue
+        name = fdp.get("name")
+        if name is None:
+            raise FileFormatError(path, "a feature point has no name (<fdp name=\"8.3\" ...>)")
+        if name not in feature_points().names:
+            raise FileFormatError(path, f"unknown feature point {name!r} (MPEG-4 names look like '8.3')")
         try:
-            points[fdp.get("name")] = int(fdp.get("index"))
+            points[name] = int(fdp.get("index"))
         except (TypeError, ValueError):
-            raise FileFormatError(path, f"feature point {fdp.get('name')!r} has no integer index") from None
+            raise FileFormatError(path, f"feature point {name!r} has no integer index") from None
     if not points:
         raise FileFormatError(path, "names no feature points")
     fapu = None
     element = root.find("head/fapu")
     if element is not None:
+        keys = ("IRISD0", "ES0", "ENS0", "MNS0", "MW0")
         try:
-            fapu = Fapu(*(float(element.get(k)) for k in ("IRISD0", "ES0", "ENS0", "MNS0", "MW0")))
-        except (TypeError, ValueError) as exc:
-            raise FileFormatError(path, f"<fapu> is incomplete ({exc})") from None
+            fapu = Fapu(*(float(element.get(k)) for k in keys))
+        except (TypeError, ValueError):  # a distance missing, not a number, or not positive and finite
+            given = " ".join(f"{k}={element.get(k)!r}" for k in keys)
+            raise FileFormatError(path, f"<fapu> must give {', '.join(keys[:-1])} and {keys[-1]} as positive "
+                                        f"numbers, got {given}") from None
     return Target.from_points(mesh, points, fapu, source=str(path))

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import FileFormatError, InputError
 from ..geometry.mesh import Mesh
+from ..jsonfile import read_json
 from .faceparts import ROLES
 
 __all__ = ["read_parts_file"]
@@ -30,12 +30,7 @@ def read_parts_file(path) -> dict:
     ``"eye"`` (left or right found from the side); part names are the mesh's materials or groups.
     """
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except OSError as exc:
-        raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise FileFormatError(path, f"is not valid JSON ({exc})", getattr(exc, "lineno", None)) from None
+    data = read_json(path)
     allowed = (*ROLES, "teeth", "eye")
     if not isinstance(data, dict) or not data:
         raise FileFormatError(path, 'must map roles to part names or vertex ranges, like {"teeth": ["M_Teeth"]}')
