@@ -2,6 +2,10 @@
 written as ``shared/mpeg4/fap_file_format.md`` recommends: tolerant reading (comment lines anywhere,
 integer or decimal values), strict writing (version 2.1, one-token name, integer fps, 68-digit masks,
 integer values, 4 fields for FAP 1 and 6 for FAP 2). Every reading error names the file and line.
+
+Numbers that are counts or codes must be whole, though they may be written as decimals (``3.0``):
+frame numbers (0 to 2**31 - 1, never decreasing) and the fields of FAPs 1 and 2 (within 32 bits); a
+fractional one (``2.5``) is refused, not truncated. A file must hold at least one frame.
 """
 
 from __future__ import annotations
@@ -40,6 +44,16 @@ def _number(token: str, path, line: int, what: str) -> float:
     return value
 
 
+_WHOLE = 2**31  # frame numbers and the fields of FAPs 1 and 2 lie below this in magnitude (32 bits)
+
+
+def _whole(value: float, token: str, path, line: int, what: str, *, low: int) -> int:
+    """``value`` (parsed from ``token``) as an int, if it is whole and in ``[low, 2**31)``."""
+    if value != int(value) or not low <= value < _WHOLE:
+        raise FileFormatError(path, f"{what} {token} is not a whole number from {low} to {_WHOLE - 1}", line)
+    return int(value)
+
+
 def read_fap(path) -> FapStream:
     """Read a ``.fap`` file.
 
@@ -49,7 +63,8 @@ def read_fap(path) -> FapStream:
         The file does not exist or cannot be read.
     FileFormatError
         A bad header, a mask that is not 68 zeros and ones, a missing or short value line, a
-        non-numeric token, decreasing frame numbers, or a frame count that disagrees with the
+        non-numeric or non-finite token, a frame number or FAP 1/2 field that is not whole (or out of
+        32 bits), decreasing frame numbers, no frames, or a frame count that disagrees with the
         header; the message names the file and line. Values outside their MPEG-4 range are kept (see
         :meth:`FapStream.out_of_range`), never clipped.
     """
@@ -86,18 +101,18 @@ def read_fap(path) -> FapStream:
             raise FileFormatError(path, f"value line must hold the frame number and {expected - 1} values for "
                                         f"the mask on line {mask_line}, got {len(value_tokens)} tokens", value_line)
         numbers = [_number(t, path, value_line, "value") for t in value_tokens]
-        frame = numbers.pop(0)
+        frame = _whole(numbers.pop(0), value_tokens[0], path, value_line, "frame number", low=0)
         if frames and frame < frames[-1]:
-            raise FileFormatError(path, f"frame number {frame:g} comes after frame {frames[-1]:g}", value_line)
+            raise FileFormatError(path, f"frame number {frame} comes after frame {frames[-1]}", value_line)
         row = np.zeros(FAP_COUNT)
         viseme = np.zeros(4, dtype=np.int64)
         expression = np.zeros(6, dtype=np.int64)
-        if mask[0]:
-            viseme[:] = numbers[:4]
-            numbers = numbers[4:]
-        if mask[1]:
-            expression[:] = numbers[:6]
-            numbers = numbers[6:]
+        at = 1  # the token of numbers[0]
+        for fap, fields, width in ((1, viseme, 4), (2, expression, 6)):
+            if mask[fap - 1]:
+                fields[:] = [_whole(v, t, path, value_line, f"FAP {fap} field", low=-_WHOLE)
+                             for v, t in zip(numbers[:width], value_tokens[at:at + width], strict=True)]
+                numbers, at = numbers[width:], at + width
         row[2:][mask[2:]] = numbers
         frames.append(frame)
         values.append(row)
@@ -106,13 +121,16 @@ def read_fap(path) -> FapStream:
         expressions.append(expression)
     if len(frames) != count:
         raise FileFormatError(path, f"header says {int(count)} frames but the file holds {len(frames)}", header_line)
-    T = len(frames)
-    masks_array = np.array(masks).reshape(T, FAP_COUNT)
-    return FapStream(
-        values=np.array(values).reshape(T, FAP_COUNT), mask=masks_array, fps=fps,
-        frame_numbers=np.array(frames, dtype=np.int64),
-        visemes=np.array(visemes).reshape(T, 4) if masks_array[:, 0].any() else None,
-        expressions=np.array(expressions).reshape(T, 6) if masks_array[:, 1].any() else None, name=name)
+    if not frames:
+        raise FileFormatError(path, "holds no frames", header_line)
+    masks_array = np.array(masks)
+    try:
+        return FapStream(
+            values=np.array(values), mask=masks_array, fps=fps, frame_numbers=np.array(frames, dtype=np.int64),
+            visemes=np.array(visemes) if masks_array[:, 0].any() else None,
+            expressions=np.array(expressions) if masks_array[:, 1].any() else None, name=name)
+    except ValueError as exc:  # FapStream's own checks, should the reader's above miss one
+        raise FileFormatError(path, str(exc)) from None
 
 
 def write_fap(path, stream: FapStream) -> None:
