@@ -43,7 +43,7 @@ def test_obj_quads_and_ngons_are_fanned_in_file_order(tmp_path):
     ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 a\n", r"a.obj:4: vertex index 'a' is not an integer"),
     ("v 0 0 0\n", r"a.obj: has no faces"),
     ("", r"a.obj: is empty"),
-    ("v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", r"a.obj: vertices must be finite, got nan at index \(0, 2\)"),
+    ("v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", r"a.obj:1: vertex has a non-finite coordinate in '0 0 nan'"),
 ])
 def test_malformed_obj_names_file_and_line(tmp_path, text, match):
     path = tmp_path / "a.obj"

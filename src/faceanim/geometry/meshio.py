@@ -194,28 +194,46 @@ def write_mesh(path, mesh: Mesh, *, force: bool = False) -> None:
 
 
 def read_glb_json(path) -> dict:
-    """The JSON chunk of a ``.glb`` file (its scene description, without the binary buffer)."""
-    path = Path(path)
-    with open(path, "rb") as handle:
-        header = handle.read(20)
-        if len(header) < 20 or header[:4] != b"glTF" or header[16:20] != b"JSON":
-            raise FileFormatError(path, "is not a binary glTF (.glb) file")
-        length = int.from_bytes(header[12:16], "little")
-        try:
-            import json
+    """The JSON chunk of a ``.glb`` file (its scene description, without the binary buffer).
 
-            return json.loads(handle.read(length))
-        except ValueError as exc:
-            raise FileFormatError(path, f"has a broken JSON chunk ({exc})") from None
+    Raises
+    ------
+    InputError
+        The file cannot be read.
+    FileFormatError
+        No glTF header, a JSON chunk cut short, not JSON (or nested too deeply), or not a JSON object.
+    """
+    import json
+
+    path = Path(path)
+    try:
+        with open(path, "rb") as handle:
+            header = handle.read(20)
+            if len(header) < 20 or header[:4] != b"glTF" or header[16:20] != b"JSON":
+                raise FileFormatError(path, "is not a binary glTF (.glb) file")
+            length = int.from_bytes(header[12:16], "little")
+            chunk = handle.read(length)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if len(chunk) < length:
+        raise FileFormatError(path, f"is cut short (its JSON chunk declares {length} bytes; {len(chunk)} follow)")
+    try:
+        document = json.loads(chunk)
+    except (ValueError, RecursionError) as exc:  # JSONDecodeError, UnicodeDecodeError, a 5,000-digit number
+        raise FileFormatError(path, f"has a broken JSON chunk ({str(exc).split(';')[0]})") from None
+    if not isinstance(document, dict):
+        raise FileFormatError(path, f"its JSON chunk is not an object (it is a {type(document).__name__})")
+    return document
 
 
 def glb_extras(path) -> dict:
     """What faceanim stored in a ``.glb`` (the first mesh's ``extras["faceanim"]``); ``{}`` for other
-    files and formats."""
+    files and formats, and where the document has no such object."""
     path = Path(path)
     if _suffix(path) != ".glb":
         return {}
-    meshes = read_glb_json(path).get("meshes") or [{}]
-    extras = meshes[0].get("extras") or {}
+    meshes = read_glb_json(path).get("meshes")
+    first = meshes[0] if isinstance(meshes, list) and meshes else None
+    extras = first.get("extras") if isinstance(first, dict) else None
     found = extras.get("faceanim") if isinstance(extras, dict) else None
     return found if isinstance(found, dict) else {}

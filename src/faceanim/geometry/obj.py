@@ -4,19 +4,31 @@ and every error names its file and line.
 Faces with four or more corners are split into a fan of triangles. Vertex normals in the file are
 ignored (they are recomputed from the geometry). Materials become part labels; the diffuse texture
 (``map_Kd``) of the material that covers most triangles becomes the mesh's texture.
+
+Reading is strict about what it uses and tolerant of the rest: coordinates must be finite numbers,
+indices must point at earlier lines; a ``.obj.gz`` must be a complete gzip file of UTF-8 text. A
+material library or texture that does not exist is left out (the mesh comes back untextured), but one
+that exists and cannot be read, is not an image, or is larger than :data:`MAX_TEXTURE_SIDE` pixels a
+side or PIL's ``Image.MAX_IMAGE_PIXELS`` in all is refused, naming the MTL and the image.
 """
 
 from __future__ import annotations
 
+import math
+import struct
+import warnings
+import zlib
 from pathlib import Path
 
 import numpy as np
 
 from ..atomic import atomic_output
-from ..errors import FileFormatError
+from ..errors import FileFormatError, InputError
 from .mesh import Mesh
 
-__all__ = ["read_obj", "write_obj", "obj_text", "write_material"]
+__all__ = ["read_obj", "write_obj", "obj_text", "write_material", "MAX_TEXTURE_SIDE"]
+
+MAX_TEXTURE_SIDE = 16384  # pixels; a larger map_Kd image is refused
 
 
 def _resolve(index_text: str, count: int, path, lineno: int, what: str) -> int:
@@ -28,6 +40,17 @@ def _resolve(index_text: str, count: int, path, lineno: int, what: str) -> int:
     if index == 0 or not 0 <= resolved < count:
         raise FileFormatError(path, f"{what} index {index} is out of range (the file has {count} so far)", lineno)
     return resolved
+
+
+def _coordinates(fields: list[str], count: int, path, lineno: int, what: str) -> list[float]:
+    """The first ``count`` of ``fields`` as finite floats (missing ones are the caller's to check)."""
+    try:
+        values = [float(x) for x in fields[:count]]
+    except ValueError:
+        raise FileFormatError(path, f"{what} has a non-numeric token in {' '.join(fields)!r}", lineno) from None
+    if not all(math.isfinite(v) for v in values):
+        raise FileFormatError(path, f"{what} has a non-finite coordinate in {' '.join(fields)!r}", lineno)
+    return values
 
 
 def read_obj(path, *, load_texture: bool = True) -> Mesh:
@@ -42,12 +65,16 @@ def read_obj(path, *, load_texture: bool = True) -> Mesh:
 
     Raises
     ------
+    InputError
+        The file (or its MTL) exists but cannot be read.
     FileFormatError
-        On a non-numeric token, an index out of range, a face with fewer than three corners, or a
-        file with no vertices or no faces; the message names the file and line.
+        On a non-numeric or non-finite token, an index out of range, a face with fewer than three
+        corners, a file with no vertices or no faces, text that is not UTF-8, a broken or cut-short
+        gzip file; the message names the file and line. A texture that is not an image or is too
+        large (see the module's notes): the message names the MTL and the image.
     """
     path = Path(path)
-    opener = _open_gz if path.suffix == ".gz" else open
+    gzipped = path.suffix == ".gz"
     positions, uvs, tris, uv_tris, parts = [], [], [], [], []
     part_names: list[str] = []
     part_index = {}
@@ -55,27 +82,22 @@ def read_obj(path, *, load_texture: bool = True) -> Mesh:
     mtllibs: list[str] = []
     missing_uv = False
     try:
-        with opener(path) as handle:
+        with _open_gz(path) if gzipped else open(path, encoding="utf-8-sig") as handle:
             for lineno, raw in enumerate(handle, 1):
                 line = raw.split("#", 1)[0].strip()
                 if not line:
                     continue
-                head, _, rest = line.partition(" ")
+                head, _, rest = line.replace("\t", " ").partition(" ")
+                rest = rest.strip()
                 if head == "v":
                     fields = rest.split()
-                    try:
-                        positions.append([float(x) for x in fields[:3]])
-                    except ValueError:
-                        raise FileFormatError(path, f"vertex has a non-numeric token in {rest!r}", lineno) from None
+                    positions.append(_coordinates(fields, 3, path, lineno, "vertex"))
                     if len(fields) < 3:
                         raise FileFormatError(path, f"vertex needs 3 coordinates, got {len(fields)}", lineno)
                 elif head == "vt":
                     fields = rest.split()
-                    try:
-                        uvs.append([float(x) for x in fields[:2]] + [0.0] * (2 - len(fields[:2])))
-                    except ValueError:
-                        message = f"texture coordinate has a non-numeric token in {rest!r}"
-                        raise FileFormatError(path, message, lineno) from None
+                    uv = _coordinates(fields, 2, path, lineno, "texture coordinate")
+                    uvs.append(uv + [0.0] * (2 - len(uv)))
                 elif head == "f":
                     corners = rest.split()
                     if len(corners) < 3:
@@ -94,15 +116,21 @@ def read_obj(path, *, load_texture: bool = True) -> Mesh:
                         uv_tris.append((tids[0], tids[k], tids[k + 1]) if tids else (-1, -1, -1))
                         parts.append(current_part)
                 elif head == "usemtl":
-                    name = rest.strip()
+                    name = rest
                     if name not in part_index:
                         part_index[name] = len(part_names)
                         part_names.append(name)
                     current_part = part_index[name]
-                elif head == "mtllib":
-                    mtllibs.append(rest.strip())
+                elif head == "mtllib" and rest:
+                    mtllibs.append(rest)
     except UnicodeDecodeError:
-        raise FileFormatError(path, "is not a text OBJ file") from None
+        raise FileFormatError(path, "is not a text OBJ file (not UTF-8)") from None
+    except EOFError:
+        raise FileFormatError(path, "is not a complete gzip file (it ends early)") from None
+    except (zlib.error, OSError) as exc:  # gzip.BadGzipFile is an OSError
+        if gzipped and not isinstance(exc, FileNotFoundError | PermissionError | IsADirectoryError):
+            raise FileFormatError(path, f"is not a readable gzip file ({exc})") from None
+        raise InputError(f"{path}: cannot be read ({getattr(exc, 'strerror', None) or exc})") from None
     if not positions:
         raise FileFormatError(path, "has no vertices")
     if not tris:
@@ -125,41 +153,87 @@ def read_obj(path, *, load_texture: bool = True) -> Mesh:
     texture = None
     if load_texture and uv is not None and mtllibs:
         texture = _read_texture(path, mtllibs, part_names, labels)
-    return Mesh(np.asarray(positions), np.asarray(tris, dtype=np.int64), uv=uv, uv_triangles=uv_triangles,
-                texture=texture, parts=labels, part_names=tuple(part_names))
+    try:
+        return Mesh(np.asarray(positions), np.asarray(tris, dtype=np.int64), uv=uv, uv_triangles=uv_triangles,
+                    texture=texture, parts=labels, part_names=tuple(part_names))
+    except ValueError as exc:  # the Mesh's own checks, should the reader's above miss one
+        raise FileFormatError(path, str(exc)) from None
 
 
-def _open_gz(path):
+def _open_gz(path: Path):
+    """``path`` as UTF-8 text through gzip; a file that does not start like gzip is refused at once."""
     import gzip
 
-    return gzip.open(path, "rt")
+    with open(path, "rb") as handle:
+        magic = handle.read(2)
+    if magic != b"\x1f\x8b":
+        raise FileFormatError(path, "is not a gzip file (it does not start with the gzip signature)")
+    return gzip.open(path, "rt", encoding="utf-8-sig")
+
+
+def _is_file(path: Path) -> bool:
+    """Whether ``path`` is a regular file; False for names no file can have (too long, NUL bytes)."""
+    try:
+        return path.is_file()
+    except OSError:
+        return False
 
 
 def _read_texture(obj_path: Path, mtllibs, part_names, labels):
-    """The map_Kd image of the material covering most triangles, or None."""
+    """The map_Kd image of the material covering most triangles, or None where the OBJ's MTL files
+    or that image do not exist. A map_Kd path is taken relative to its MTL file."""
     maps = {}
     for lib in mtllibs:
         mtl = obj_path.parent / lib
-        if not mtl.exists():
+        if not _is_file(mtl):
             continue
+        try:
+            text = mtl.read_text(encoding="utf-8", errors="replace")
+        except OSError as exc:
+            raise InputError(f"{mtl}: cannot be read ({exc.strerror or exc})") from None
         material = None
-        for raw in mtl.read_text(errors="replace").splitlines():
+        for raw in text.splitlines():
             fields = raw.split("#", 1)[0].split()
             if len(fields) >= 2 and fields[0] == "newmtl":
                 material = fields[1]
             elif len(fields) >= 2 and fields[0] == "map_Kd" and material is not None:
-                maps[material] = obj_path.parent / fields[-1]
+                maps[material] = (mtl, mtl.parent / fields[-1])
     if not maps:
         return None
     counts = np.bincount(labels, minlength=len(part_names)) if labels is not None else []
     ranked = sorted(maps, key=lambda m: -counts[part_names.index(m)] if m in part_names else 0)
-    image_path = maps[ranked[0]]
-    if not image_path.exists():
+    mtl, image_path = maps[ranked[0]]
+    if not _is_file(image_path):
         return None
+    return _read_image(mtl, image_path)
+
+
+def _read_image(mtl: Path, image_path: Path) -> np.ndarray:
+    """``(H, W, 3) uint8``: the texture ``image_path`` named by ``mtl``, refused (naming both) if it is
+    not an image, cannot be decoded, or is larger than :data:`MAX_TEXTURE_SIDE` a side or PIL's
+    ``Image.MAX_IMAGE_PIXELS`` in all."""
     from PIL import Image
 
-    with Image.open(image_path) as image:
-        return np.asarray(image.convert("RGB"))
+    try:
+        with warnings.catch_warnings():  # above MAX_IMAGE_PIXELS PIL warns; the size is refused below
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            image = Image.open(image_path)
+    except Image.DecompressionBombError as exc:
+        raise FileFormatError(mtl, f"texture {image_path} is too large ({str(exc).split(',')[0]})") from None
+    except OSError as exc:  # PIL's UnidentifiedImageError is an OSError
+        raise FileFormatError(mtl, f"texture {image_path} is not an image ({exc})") from None
+    with image:
+        width, height = image.size
+        most = Image.MAX_IMAGE_PIXELS or math.inf
+        if max(width, height) > MAX_TEXTURE_SIDE or width * height > most:
+            raise FileFormatError(mtl, f"texture {image_path} is {width} x {height} pixels; textures may be at most "
+                                       f"{MAX_TEXTURE_SIDE} pixels a side and {most:,} pixels in all")
+        try:
+            return np.asarray(image.convert("RGB"))
+        except (OSError, SyntaxError, ValueError, EOFError, struct.error, zlib.error) as exc:
+            # PIL reports broken image data in all of these ways, depending on the format
+            message = f"texture {image_path} cannot be decoded ({type(exc).__name__}: {exc})"
+            raise FileFormatError(mtl, message) from None
 
 
 def obj_text(mesh: Mesh, *, material: str | None = None) -> str:
