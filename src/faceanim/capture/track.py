@@ -135,17 +135,90 @@ class Track:
 
     @classmethod
     def load(cls, path) -> Track:
+        """Read a track written by :meth:`save`.
+
+        Raises
+        ------
+        InputError
+            The file is missing or cannot be read.
+        FileFormatError
+            The file is not a ``.npz`` archive (empty, a single ``.npy`` array, a pickle, a broken or
+            cut-short zip), lacks one of the track's arrays, or holds one of the wrong kind or shape
+            (as :class:`Track` checks its fields); the message names the file.
+        """
         path = Path(path)
         if not path.is_file():
             raise InputError(f"{path}: no such file")
+        fields = _read_npz(path)
         try:
-            with np.load(path) as data:
-                shapes = data["blendshapes"] if "blendshapes" in data else None
-                names = tuple(str(n) for n in data["blendshape_names"]) if "blendshape_names" in data else ()
-                return cls(data["landmarks"], data["valid"], data["filled"], data["times"], float(data["fps"]),
-                           int(data["width"]), int(data["height"]), str(data["source"]), shapes, names)
-        except (KeyError, TypeError, ValueError, OSError) as exc:
+            return cls(**fields)
+        except (TypeError, ValueError) as exc:  # the Track's own checks of what the file holds
             raise FileFormatError(path, f"is not a faceanim track ({exc})") from None
+
+
+_NUMBERS = "iuf"  # numpy kinds of real numbers (not bool, complex, strings, dates)
+
+
+def _read_npz(path: Path) -> dict:
+    """:class:`Track`'s fields from the ``.npz`` at ``path``: each array of the kind :meth:`Track.save`
+    writes (shapes are left to the Track), or a FileFormatError naming the file."""
+    import tokenize
+    import zipfile
+    import zlib
+
+    def refuse(why: str):
+        return FileFormatError(path, f"is not a faceanim track ({why})")
+
+    try:
+        with open(path, "rb") as handle:
+            magic = handle.read(6)
+    except OSError as exc:
+        raise InputError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    if not magic:
+        raise FileFormatError(path, "is empty")
+    if magic == b"\x93NUMPY":
+        raise FileFormatError(path, "is a single .npy array, not a faceanim track (.npz)")
+    if not magic.startswith(b"PK"):
+        raise refuse("not a .npz file: it does not start with the zip signature")
+    arrays = {}
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            for key in ("landmarks", "valid", "filled", "times", "fps", "width", "height", "source", "blendshapes",
+                        "blendshape_names"):
+                if key in data.files:
+                    arrays[key] = data[key]
+    except (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error, tokenize.TokenError,
+            NotImplementedError) as exc:
+        # a broken zip, a cut-short or corrupt member, a compression method zipfile lacks, a bad .npy
+        # header or object arrays
+        raise refuse(f"{type(exc).__name__}: {exc}") from None
+    except RuntimeError as exc:  # zipfile: "File ... is encrypted, password required for extraction"
+        if isinstance(exc, RecursionError):
+            raise
+        raise refuse(f"{type(exc).__name__}: {exc}") from None
+    except MemoryError:
+        raise refuse("an array's header declares more data than fits in memory") from None
+    missing = [k for k in ("landmarks", "valid", "filled", "times", "fps", "width", "height", "source")
+               if k not in arrays]
+    if missing:
+        raise refuse(f"it lacks {', '.join(missing)}")
+
+    def kind(key: str, kinds: str, what: str, *, ndim: int | None = None):
+        value = arrays[key]
+        if value.dtype.kind not in kinds or (ndim is not None and value.ndim != ndim):
+            raise refuse(f"{key} must be {what}, got {value.dtype} of shape {value.shape}")
+        return value.item() if ndim == 0 else value
+
+    fields = {key: kind(key, _NUMBERS, "an array of numbers") for key in ("landmarks", "times")}
+    fields |= {key: kind(key, "b", "an array of booleans") for key in ("valid", "filled")}
+    fields["fps"] = kind("fps", _NUMBERS, "a number", ndim=0)
+    fields |= {key: kind(key, _NUMBERS, "a whole number", ndim=0) for key in ("width", "height")}
+    fields["source"] = kind("source", "U", "a string", ndim=0)
+    if "blendshapes" in arrays:
+        fields["blendshapes"] = kind("blendshapes", _NUMBERS, "an array of numbers")
+    if "blendshape_names" in arrays:
+        fields["blendshape_names"] = tuple(str(n) for n in kind("blendshape_names", "U", "a list of names", ndim=1))
+    return fields
 
 
 def fill_gaps(track: Track, max_gap: float = 0.2) -> Track:
