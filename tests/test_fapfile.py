@@ -86,3 +86,22 @@ def test_out_of_range_values_are_kept_and_reported(tmp_path):
     path.write_text(f"2.1 a 25 1\n{MASK}\n0 99999\n")
     stream = read_fap(path)
     assert stream.values[0, 2] == 99999 and stream.out_of_range()[0, 2]
+
+
+@pytest.mark.parametrize("fps", ["1e300", "5000", "1e-9"])
+def test_a_frame_rate_no_player_keeps_is_refused_with_its_line(tmp_path, fps):
+    """A .fap of 1e300 fps used to be read, and decoded into a glTF whose keyframe times were all 0."""
+    path = tmp_path / "fast.fap"
+    path.write_text(f"2.1 fast {fps} 1\n" + "0 0 1" + " 0" * 65 + "\n0 100\n")
+    with pytest.raises(FileFormatError, match=rf"fast.fap:1: header frame rate {fps} must lie from 0.001 to 1000"):
+        read_fap(path)
+
+
+@pytest.mark.parametrize("fps", [0.4, 2000.0])
+def test_a_frame_rate_the_format_cannot_hold_is_refused_before_writing(tmp_path, fps):
+    """0.4 fps used to be written as 0, a file fap-info then refused."""
+    mask = np.zeros((2, FAP_COUNT), dtype=bool)
+    mask[:, 2] = True
+    with pytest.raises(ValueError, match=f"a .fap holds a whole frame rate from 1 to 1000; {fps:g} fps rounds"):
+        write_fap(tmp_path / "slow.fap", FapStream(np.zeros((2, FAP_COUNT)), mask, fps))
+    assert not (tmp_path / "slow.fap").exists()

@@ -44,6 +44,9 @@ def _number(token: str, path, line: int, what: str) -> float:
     return value
 
 
+# Frame rates a .fap may say: from one frame in 1,000 s (a slide show) to 1,000 a second; outside,
+# the times of the frames (and a glTF's keyframes) lose their meaning (1e300 fps gives times of 0).
+_FPS_RANGE = (1e-3, 1000.0)
 _WHOLE = 2**31  # frame numbers and the fields of FAPs 1 and 2 lie below this in magnitude (32 bits)
 
 
@@ -85,6 +88,9 @@ def read_fap(path) -> FapStream:
     if fps <= 0 or count < 0 or count != int(count):
         raise FileFormatError(path, f"header frame rate {tokens[-2]} and frame count {tokens[-1]} must be "
                                     "positive and whole", header_line)
+    if not _FPS_RANGE[0] <= fps <= _FPS_RANGE[1]:
+        raise FileFormatError(path, f"header frame rate {tokens[-2]} must lie from {_FPS_RANGE[0]:g} to "
+                                    f"{_FPS_RANGE[1]:g} frames a second", header_line)
 
     values, masks, frames, visemes, expressions = [], [], [], [], []
     for mask_line, mask_tokens in lines:
@@ -136,8 +142,13 @@ def read_fap(path) -> FapStream:
 def write_fap(path, stream: FapStream) -> None:
     """Write ``stream`` as a version 2.1 ``.fap`` file, complete or not at all.
 
-    Values are rounded to integers (the format's unit is one FAPU count) and fps to a whole number.
+    Values are rounded to integers (the format's unit is one FAPU count) and fps to a whole number;
+    a rate that rounds to none (below 0.5 fps) or beyond what :func:`read_fap` reads is refused
+    (ValueError) before anything is written.
     """
+    if not 1 <= round(stream.fps) <= _FPS_RANGE[1]:
+        raise ValueError(f"a .fap holds a whole frame rate from 1 to {_FPS_RANGE[1]:g}; {stream.fps:g} fps rounds "
+                         f"to {round(stream.fps)}")
     lines = [f"2.1 {stream.name} {round(stream.fps)} {len(stream)}"]
     rounded = np.rint(stream.values).astype(np.int64)
     for t in range(len(stream)):
