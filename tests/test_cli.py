@@ -10,17 +10,23 @@ from faceanim.cli import main
 from faceanim.geometry import read_mesh, write_mesh
 
 
-@pytest.fixture
-def files(tmp_path):
+def write_transfer_files(folder):
+    """``src.obj``, ``expr.ply``, ``tgt.glb`` (the source shuffled) and ``pairs.json`` (12 pairs) in
+    ``folder``; returns the shuffle's new vertex index."""
     rng = np.random.default_rng(3)
     source = bumpy_sphere()
     target, new_index = shuffled(source, rng)
     ids = rng.choice(len(source.vertices), 12, replace=False)
-    write_mesh(tmp_path / "src.obj", source)
-    write_mesh(tmp_path / "expr.ply", expression_of(source, rng))
-    write_mesh(tmp_path / "tgt.glb", target)
-    (tmp_path / "pairs.json").write_text(json.dumps({"source": ids.tolist(), "target": new_index[ids].tolist()}))
-    return tmp_path, new_index
+    write_mesh(folder / "src.obj", source)
+    write_mesh(folder / "expr.ply", expression_of(source, rng))
+    write_mesh(folder / "tgt.glb", target)
+    (folder / "pairs.json").write_text(json.dumps({"source": ids.tolist(), "target": new_index[ids].tolist()}))
+    return new_index
+
+
+@pytest.fixture
+def files(tmp_path):
+    return tmp_path, write_transfer_files(tmp_path)
 
 
 def run(tmp_path, *extra):

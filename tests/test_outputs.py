@@ -3,7 +3,6 @@
 the command line for errors and interrupts, and odd values refused by name (issue 20)."""
 
 import hashlib
-import json
 import os
 import re
 import signal
@@ -15,8 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import ROOT, grid_mesh, shared
-from test_project import bumpy_sphere
-from test_transfer import expression_of, shuffled
+from test_cli import write_transfer_files
 
 from faceanim import pipeline
 from faceanim.atomic import atomic_output, output_group
@@ -195,14 +193,7 @@ def inputs(tmp_path):
     (tmp_path / "j.glb").write_bytes(b"an earlier glTF")
     (tmp_path / "face.obj").write_text("the target mesh")
     os.symlink(tmp_path / "in.mp4", tmp_path / "link.mp4")
-    rng = np.random.default_rng(3)
-    source = bumpy_sphere()
-    target, new_index = shuffled(source, rng)
-    ids = rng.choice(len(source.vertices), 12, replace=False)
-    write_mesh(tmp_path / "src.obj", source)
-    write_mesh(tmp_path / "expr.ply", expression_of(source, rng))
-    write_mesh(tmp_path / "tgt.glb", target)
-    (tmp_path / "pairs.json").write_text(json.dumps({"source": ids.tolist(), "target": new_index[ids].tolist()}))
+    write_transfer_files(tmp_path)
     return tmp_path
 
 
