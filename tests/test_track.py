@@ -63,3 +63,19 @@ def test_a_track_made_directly_is_checked_naming_the_field(change, error, match)
 def test_whole_number_sizes_are_kept_as_ints():
     track = Track(**{**parts(), "width": np.int64(64), "height": 48.0})
     assert type(track.width) is int and type(track.height) is int and track.height == 48
+
+
+def test_per_frame_rows_grow_in_one_array_with_nan_where_no_face_was():
+    from faceanim.capture.track import _Rows
+
+    rows = _Rows()
+    rows.append(None)  # frames before the first face
+    rows.append(None)
+    for t in range(200):  # past the first capacity, so the array grows
+        rows.append(None if t % 7 == 3 else np.full((4, 3), float(t)))
+    kept = rows.array()
+    assert kept.shape == (202, 4, 3) and not kept.flags.writeable and kept.base is None  # owned: taken uncopied
+    assert np.isnan(kept[[0, 1, 5, 201]]).all() and (kept[2] == 0).all() and (kept[200] == 198).all()
+    empty = _Rows()
+    empty.append(None)
+    assert empty.array() is None

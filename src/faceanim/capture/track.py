@@ -240,6 +240,37 @@ def fill_gaps(track: Track, max_gap: float = 0.2) -> Track:
     return replace(track, landmarks=landmarks, filled=filled)
 
 
+class _Rows:
+    """One row a frame (an array of one shape, or None: a row of NaN), kept in one float64 array that
+    grows by doubling. A video's many small per-frame arrays, held between its large frame buffers,
+    fragment the heap: tracking a 60 s video kept about five times the landmarks' size."""
+
+    def __init__(self):
+        self._data, self._count = None, 0
+
+    def append(self, row) -> None:
+        if row is None and self._data is None:
+            self._count += 1
+            return
+        if self._data is None:
+            self._data = np.full((max(64, 2 * (self._count + 1)), *np.shape(row)), np.nan)
+        elif self._count == len(self._data):
+            grown = np.full((2 * len(self._data), *self._data.shape[1:]), np.nan)
+            grown[:self._count] = self._data
+            self._data = grown
+        if row is not None:
+            self._data[self._count] = row
+        self._count += 1
+
+    def array(self) -> np.ndarray | None:
+        """The rows ``(T, ...)``, read-only and owned (a Track takes it uncopied); None when every row was None."""
+        if self._data is None:
+            return None
+        self._data.resize((self._count, *self._data.shape[1:]), refcheck=False)  # shrinks in place
+        self._data.flags.writeable = False
+        return self._data
+
+
 def track_video(path, *, options: TrackerOptions | None = None, max_gap: float = 0.2,
                 progress=None, model=None) -> Track:
     """Track the face through a video, an image or an image folder; with ``model`` (a
@@ -256,35 +287,24 @@ def track_video(path, *, options: TrackerOptions | None = None, max_gap: float =
 
     options = options or TrackerOptions()
     shown = Progress() if progress is None and sys.stderr.isatty() else as_progress(progress)
-    frames, valid, times, shapes = [], [], [], []
+    faces, shapes, valid, times = _Rows(), _Rows(), [], []
     names = ()
     with open_frames(path) as source, open_tracker(options, model) as tracker:
         for index, (time, rgb) in enumerate(shown.bar(source, total=source.frame_count, desc="tracking")):
             time = time if time is not None else index / source.fps
             face = tracker(rgb, time)
             valid.append(face is not None)
-            frames.append(face)
+            faces.append(face)
             times.append(time)
             shapes.append(tracker.blendshapes)
             names = names or getattr(tracker, "blendshape_names", ())
         fps, width, height = source.fps, source.width, source.height
-    if not frames:
+    if not valid:
         raise InputError(f"{path}: holds no frames")
     if not any(valid):
-        raise InputError(f"{path}: no face was found in any of its {len(frames)} frames")
-    count = next(f for f in frames if f is not None).shape[0]
-    landmarks = np.full((len(frames), count, 3), np.nan)
-    for i, face in enumerate(frames):
-        if face is not None:
-            landmarks[i] = face
-            frames[i] = None  # let go of each frame as it is copied: the landmarks are not held twice
-    blendshapes = None
-    if model is not None and names:
-        blendshapes = np.full((len(frames), len(names)), np.nan)
-        for i, row in enumerate(shapes):
-            if row is not None:
-                blendshapes[i] = row
-    landmarks.flags.writeable = False  # handed over: the Track takes it uncopied
-    track = Track(landmarks, np.array(valid), np.zeros(len(frames), bool), np.array(times, dtype=np.float64),
+        raise InputError(f"{path}: no face was found in any of its {len(valid)} frames")
+    landmarks = faces.array()
+    blendshapes = shapes.array() if model is not None and names else None
+    track = Track(landmarks, np.array(valid), np.zeros(len(valid), bool), np.array(times, dtype=np.float64),
                   fps, width, height, str(path), blendshapes, tuple(names))
     return fill_gaps(track, max_gap)
