@@ -241,21 +241,22 @@ def fill_gaps(track: Track, max_gap: float = 0.2) -> Track:
 
 
 class _Rows:
-    """One row a frame (an array of one shape, or None: a row of NaN), kept in one float64 array that
-    grows by doubling. A video's many small per-frame arrays, held between its large frame buffers,
+    """One row a frame (an array of one shape, or None: a row of NaN), kept in one float64 array made
+    for the ``expected`` number of frames (a container's frame count) and grown by a quarter when
+    there are more. A video's many small per-frame arrays, held between its large frame buffers,
     fragment the heap: tracking a 60 s video kept about five times the landmarks' size."""
 
-    def __init__(self):
-        self._data, self._count = None, 0
+    def __init__(self, expected: int | None = None):
+        self._data, self._count, self._expected = None, 0, expected or 0
 
     def append(self, row) -> None:
         if row is None and self._data is None:
             self._count += 1
             return
         if self._data is None:
-            self._data = np.full((max(64, 2 * (self._count + 1)), *np.shape(row)), np.nan)
-        elif self._count == len(self._data):
-            grown = np.full((2 * len(self._data), *self._data.shape[1:]), np.nan)
+            self._data = np.full((max(64, self._expected, 2 * (self._count + 1)), *np.shape(row)), np.nan)
+        elif self._count == len(self._data):  # more frames than the container said: a quarter more at a time
+            grown = np.full((len(self._data) + max(64, len(self._data) // 4), *self._data.shape[1:]), np.nan)
             grown[:self._count] = self._data
             self._data = grown
         if row is not None:
@@ -287,9 +288,10 @@ def track_video(path, *, options: TrackerOptions | None = None, max_gap: float =
 
     options = options or TrackerOptions()
     shown = Progress() if progress is None and sys.stderr.isatty() else as_progress(progress)
-    faces, shapes, valid, times = _Rows(), _Rows(), [], []
+    valid, times = [], []
     names = ()
     with open_frames(path) as source, open_tracker(options, model) as tracker:
+        faces, shapes = _Rows(source.frame_count), _Rows(source.frame_count)
         for index, (time, rgb) in enumerate(shown.bar(source, total=source.frame_count, desc="tracking")):
             time = time if time is not None else index / source.fps
             face = tracker(rgb, time)
