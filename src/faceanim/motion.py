@@ -79,8 +79,11 @@ class Motion:
         pose = as_array(self.pose, "pose", shape=(len(d), 4, 4), frozen=True)
         valid = np.ones(len(d), bool) if self.valid is None else self.valid
         valid = as_array(valid, "valid", shape=(len(d),), dtype=bool, frozen=True)
-        if not np.isfinite(d[valid]).all():
-            raise ValueError("displacements must be finite on valid frames")
+        for start in range(0, len(d), 1024):  # by blocks: d[valid] would copy a long video's motion
+            broken = valid[start:start + 1024] & ~np.isfinite(d[start:start + 1024]).all(axis=(1, 2))
+            if broken.any():
+                raise ValueError(f"displacements must be finite on valid frames, got NaN or infinity on frame "
+                                 f"{start + int(np.argmax(broken))}")
         if isinstance(self.fps, bool) or not isinstance(self.fps, numbers.Real) or not (
                 np.isfinite(self.fps) and self.fps > 0):
             raise ValueError(f"fps must be a positive number, got {self.fps!r}")

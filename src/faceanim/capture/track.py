@@ -187,6 +187,7 @@ def _read_npz(path: Path) -> dict:
                         "blendshape_names"):
                 if key in data.files:
                     arrays[key] = data[key]
+                    arrays[key].flags.writeable = False  # fresh and ours: the Track takes it uncopied
     except (OSError, EOFError, ValueError, zipfile.BadZipFile, zlib.error, tokenize.TokenError,
             NotImplementedError) as exc:
         # a broken zip, a cut-short or corrupt member, a compression method zipfile lacks, a bad .npy
