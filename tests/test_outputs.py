@@ -315,6 +315,31 @@ def test_an_interrupt_removes_the_jobs_outputs_and_temporary_files(tmp_path, mon
     assert {s: signal.getsignal(s) for s in before} == before
 
 
+@pytest.mark.parametrize("number, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_an_interrupt_a_library_swallows_still_ends_the_job(tmp_path, monkeypatch, capsys, number, status):
+    """trimesh's optional imports catch BaseException, so an interrupt raised while it is imported never
+    reaches main; the job runs on to its end, but still leaves none of its outputs and says interrupted
+    (it wrote them all and exited 0)."""
+    (tmp_path / "x.fap").write_text("the earlier FAPs")
+
+    def job(path):
+        with atomic_output(tmp_path / "x.fap") as tmp:
+            tmp.write_text("new FAPs")
+        try:
+            os.kill(os.getpid(), number)
+            time.sleep(30)  # the handler raises here
+        except BaseException:  # as trimesh does around its optional imports
+            pass
+        with atomic_output(tmp_path / "curves.csv") as tmp:
+            tmp.write_text("new curves")
+        return "a summary"
+
+    monkeypatch.setattr(pipeline, "fap_info", job)
+    assert main(["fap-info", str(tmp_path / "x.fap")]) == status
+    assert capsys.readouterr() == ("", "faceanim: interrupted\n")
+    assert snapshot(tmp_path) == {"x.fap": hashlib.sha256(b"the earlier FAPs").hexdigest()}
+
+
 def test_an_output_group_commits_together_and_nests(tmp_path):
     with output_group():
         with atomic_output(tmp_path / "a.txt") as tmp:

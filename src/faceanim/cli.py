@@ -187,8 +187,10 @@ def main(argv=None) -> int:
     warnings.formatwarning = lambda message, *_, **__: f"faceanim: warning: {message}\n"
 
     try:
-        with _interrupts_raised(), output_group():
+        with _interrupts_raised() as received, output_group():
             said = _run(args, progress)
+            if received:  # the interrupt was raised but swallowed on the way (trimesh's optional imports catch
+                raise _Interrupted(received[0])  # BaseException): the job still ends interrupted, its outputs unmade
     except KeyboardInterrupt as exc:  # the group has removed the temporary files and the finished outputs
         print(("\n" if progress is not QUIET else "") + "faceanim: interrupted", file=sys.stderr)
         return 128 + getattr(exc, "signum", signal.SIGINT)
@@ -215,12 +217,6 @@ class _Interrupted(KeyboardInterrupt):
         self.signum = int(signum)
 
 
-def _raise_interrupted(signum, frame):
-    for number in _SIGNALS:  # a second Ctrl-C does not cut the clean-up short
-        signal.signal(number, signal.SIG_IGN)
-    raise _Interrupted(signum)
-
-
 _SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
@@ -228,16 +224,28 @@ _SIGNALS = (signal.SIGINT, signal.SIGTERM)
 def _interrupts_raised():
     """SIGINT and SIGTERM raise :class:`_Interrupted` inside the block (the handlers before it are
     restored after). A signal ignored when faceanim started (SIGINT in a shell's background job) stays
-    ignored; off the main thread, where handlers cannot be set, nothing changes."""
+    ignored; off the main thread, where handlers cannot be set, nothing changes.
+
+    Yields the list of the signals received (the first one only: the handler then ignores both, so a
+    second Ctrl-C does not cut the clean-up short). A library that catches ``BaseException`` can swallow
+    the raised interrupt and let the job run on; the list lets the caller end it as interrupted anyway."""
+    received: list[int] = []
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield received
         return
+
+    def raise_interrupted(signum, frame):
+        for number in _SIGNALS:
+            signal.signal(number, signal.SIG_IGN)
+        received.append(signum)
+        raise _Interrupted(signum)
+
     before = {number: signal.getsignal(number) for number in _SIGNALS}
     for number, handler in before.items():
         if handler != signal.SIG_IGN:
-            signal.signal(number, _raise_interrupted)
+            signal.signal(number, raise_interrupted)
     try:
-        yield
+        yield received
     finally:
         for number, handler in before.items():
             signal.signal(number, signal.SIG_DFL if handler is None else handler)
