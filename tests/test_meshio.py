@@ -52,6 +52,15 @@ def test_malformed_obj_names_file_and_line(tmp_path, text, match):
         read_mesh(path)
 
 
+@pytest.mark.parametrize("name", ["a.obj.gz", "A.OBJ.GZ", "a.Obj.Gz"])
+def test_a_gzipped_obj_is_read_whatever_the_case_of_its_suffix(tmp_path, name):
+    import gzip
+
+    (tmp_path / name).write_bytes(gzip.compress(OBJ.encode()))
+    (tmp_path / "plain.obj").write_text(OBJ)
+    np.testing.assert_array_equal(read_mesh(tmp_path / name).triangles, read_mesh(tmp_path / "plain.obj").triangles)
+
+
 def test_missing_file_and_unknown_format(tmp_path):
     with pytest.raises(InputError, match="no such file"):
         read_mesh(tmp_path / "none.obj")

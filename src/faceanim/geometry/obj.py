@@ -74,7 +74,7 @@ def read_obj(path, *, load_texture: bool = True) -> Mesh:
         large (see the module's notes): the message names the MTL and the image.
     """
     path = Path(path)
-    gzipped = path.suffix == ".gz"
+    gzipped = path.suffix.lower() == ".gz"  # as read_mesh dispatches: FACE.OBJ.GZ is gzip too
     positions, uvs, tris, uv_tris, parts = [], [], [], [], []
     part_names: list[str] = []
     part_index = {}
