@@ -69,13 +69,25 @@ def capture_motion(source, *, neutral=None, smoothing=True, progress=None):
     from .progress import as_progress
 
     source = Path(source)
-    recorded = Track.load(source) if source.suffix == ".npz" else track_video(source, progress=as_progress(progress))
+    if neutral is not None:
+        _check_neutral_image(neutral)  # before the video is tracked, not after
+    recorded = (Track.load(source) if source.suffix.lower() == ".npz"
+                else track_video(source, progress=as_progress(progress)))
     gaps = recorded.gaps()
     if gaps:
         frames = sum(b - a + 1 for a, b in gaps)
         print(f"faceanim: {source}: {frames} frames in {len(gaps)} stretches have no face "
               f"(first: frames {gaps[0][0]}-{gaps[0][1]}); they carry no FAPs", file=sys.stderr)
     return motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
+
+
+def _check_neutral_image(neutral) -> None:
+    """A ``--neutral`` that is no frame range names an image (or video, or folder of images) that exists."""
+    from .capture.neutral import parse_neutral
+
+    choice = parse_neutral(str(neutral), 2**62)  # any frame range passes here; the track's length is checked later
+    if not isinstance(choice, tuple) and not Path(choice).exists():
+        raise InputError(f"--neutral {choice}: no such image, or frame number (FRAME or START:END)")
 
 
 def motion_of_track(recorded, *, neutral=None, smoothing=True):

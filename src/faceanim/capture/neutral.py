@@ -53,6 +53,8 @@ def parse_neutral(spec: str, frame_count: int):
     Returns ``(start, end)`` or the image path as a string.
     """
     text = spec.strip()
+    if not text:  # would be read as the path "." and the folder's images taken for the face at rest
+        raise InputError("--neutral is empty; give FRAME, START:END or an image of the face at rest")
     try:
         if ":" in text:
             start, end = (int(x) for x in text.split(":", 1))
