@@ -340,6 +340,22 @@ def test_an_interrupt_a_library_swallows_still_ends_the_job(tmp_path, monkeypatc
     assert snapshot(tmp_path) == {"x.fap": hashlib.sha256(b"the earlier FAPs").hexdigest()}
 
 
+@pytest.mark.parametrize("number", [signal.SIGINT, signal.SIGTERM])
+def test_the_viewer_stops_on_an_interrupt_with_status_0(tmp_path, monkeypatch, capsys, number):
+    """Ctrl-C (or SIGTERM) is how the viewer stops: exit 0, no 'interrupted' (not taken for a job that
+    swallowed its interrupt)."""
+    write_mesh(tmp_path / "m.glb", grid_mesh())
+
+    def serve_forever(self):
+        os.kill(os.getpid(), number)
+        time.sleep(30)  # the handler raises here
+
+    monkeypatch.setattr("faceanim.viewer.ViewerServer.serve_forever", serve_forever)
+    assert main(["view", str(tmp_path / "m.glb"), "--port", "0", "--no-browser"]) == 0
+    out, err = capsys.readouterr()
+    assert out.startswith("faceanim view: http://127.0.0.1:") and err == ""
+
+
 def test_an_output_group_commits_together_and_nests(tmp_path):
     with output_group():
         with atomic_output(tmp_path / "a.txt") as tmp:

@@ -189,8 +189,10 @@ def main(argv=None) -> int:
     try:
         with _interrupts_raised() as received, output_group():
             said = _run(args, progress)
-            if received:  # the interrupt was raised but swallowed on the way (trimesh's optional imports catch
-                raise _Interrupted(received[0])  # BaseException): the job still ends interrupted, its outputs unmade
+            if received and args.command != "view":  # the viewer stops on an interrupt by design (exit 0)
+                # The interrupt was raised but swallowed on the way (trimesh's optional imports catch
+                # BaseException): the job still ends interrupted, its outputs unmade.
+                raise _Interrupted(received[0])
     except KeyboardInterrupt as exc:  # the group has removed the temporary files and the finished outputs
         print(("\n" if progress is not QUIET else "") + "faceanim: interrupted", file=sys.stderr)
         return 128 + getattr(exc, "signum", signal.SIGINT)
