@@ -2,10 +2,60 @@
 
 The core (meshes, MPEG-4 tables, RBF warps, projection, expression transfer) needs only numpy and
 scipy. See ``shared/ARCHITECTURE.md`` for the house plan.
+
+The jobs the ``faceanim`` command runs are functions here, with the command's options as keyword
+arguments (``--no-filter`` is ``smoothing=False``, ``--start-face`` is ``start_face=``); each writes
+its outputs complete or not at all and returns what it made. They import lazily, so ``import
+faceanim`` stays light (numpy, scipy, trimesh) until one is called::
+
+    import faceanim
+
+    track = faceanim.track("d0.mp4", "d0.npz", csv="d0_landmarks.csv")   # a Track
+    stream, clipped = faceanim.encode("d0.npz", "d0.fap")                # a FapStream
+    numbers, intensities = faceanim.aus("d0.mp4", "d0_aus.csv")          # OpenFace's columns
+
+>>> import faceanim
+>>> sorted(set(faceanim.JOBS) - set(faceanim.__all__))
+[]
+>>> faceanim.encode.__module__
+'faceanim.pipeline'
 """
+
+from __future__ import annotations
+
+import importlib
 
 from .errors import FileFormatError, InputError
 from .geometry import Mesh, RbfWarp, read_mesh, write_mesh
 
 __version__ = "0.1.0"
-__all__ = ["FileFormatError", "InputError", "Mesh", "RbfWarp", "__version__", "read_mesh", "write_mesh"]
+
+# The jobs, by name: (module, function), imported on first use.
+JOBS = {
+    "track": ("faceanim.pipeline", "track"),
+    "encode": ("faceanim.pipeline", "encode"),
+    "decode": ("faceanim.pipeline", "decode"),
+    "animate": ("faceanim.pipeline", "animate"),
+    "transfer": ("faceanim.pipeline", "transfer"),
+    "avatar": ("faceanim.pipeline", "avatar"),
+    "fap_info": ("faceanim.pipeline", "fap_info"),
+    "view": ("faceanim.pipeline", "view"),
+    "express": ("faceanim.expressions", "express"),
+    "aus": ("faceanim.expressions", "aus"),
+}  # no job shares its name with a module of the package (``faceanim.demo`` is the module; its job is run_demo)
+
+__all__ = ["FileFormatError", "InputError", "JOBS", "Mesh", "RbfWarp", "__version__", "read_mesh", "write_mesh",
+           *JOBS]
+
+
+def __getattr__(name: str):
+    if name in JOBS:
+        module, attribute = JOBS[name]
+        job = getattr(importlib.import_module(module), attribute)
+        globals()[name] = job  # once imported, an ordinary attribute
+        return job
+    raise AttributeError(f"module 'faceanim' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(JOBS))

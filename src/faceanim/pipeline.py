@@ -127,9 +127,12 @@ def transfer(source_neutral, source_expression, target, output, *, correspondenc
 # ---- capture: video -> Track -> Motion -> FAPs
 
 
-def track(video, output, *, overlay=None, csv=None, options=None, progress=None, model=None):
+def track(video, output, *, overlay=None, csv=None, start_face: str = "largest", model=None, options=None,
+          progress=None):
     """``faceanim track``: track the face through ``video``; write the Track (``.npz``), and optionally
-    an overlay video and a CSV of landmark pixels. Returns the Track."""
+    an overlay video and a CSV of landmark pixels (see :mod:`faceanim.export.curves` for the columns).
+    ``start_face`` (largest, left, right): with several faces, which one to follow; ``options``, a
+    :class:`~faceanim.capture.tracker.TrackerOptions`, stands in for it with every setting. Returns the Track."""
     from .capture.headframe import head_frame
     from .capture.overlay import overlay_frames
     from .capture.track import track_video
@@ -141,7 +144,8 @@ def track(video, output, *, overlay=None, csv=None, options=None, progress=None,
     check_outputs({"-o": (output, ".npz"), "--overlay": (overlay, ".mp4"), "--csv": (csv, ".csv")},
                   inputs={"VIDEO": video, "--model": model})
     shown = as_progress(progress)
-    result = track_video(video, options=options or TrackerOptions(), progress=shown, model=model)
+    result = track_video(video, options=options or TrackerOptions(start_face=start_face), progress=shown,
+                         model=model)
     result.save(output)
     if overlay is not None:
         _, pose = head_frame(result)
