@@ -126,6 +126,22 @@ def test_the_sequence_folder_is_new_or_empty_and_holds_only_the_sequence(tmp_pat
                        "--preview": (tmp_path / "empty" / "p.mp4", ".mp4")})
 
 
+def test_a_link_to_an_empty_folder_is_refused_as_the_sequence_folder(tmp_path, capsys):
+    """The finished sequence is renamed onto the path; onto a link to an empty folder that failed at the
+    very end, after the .glb and --csv had been put in place ('Not a directory', exit 2)."""
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "seq").symlink_to(tmp_path / "empty")
+    with pytest.raises(InputError, match=r"^--obj-sequence .*seq: is a symbolic link"):
+        check_outputs({"--obj-sequence": (tmp_path / "seq", SEQUENCE_FOLDER)})
+    fap = shared("xface", "Faps", "test.fap")
+    if fap.is_file():  # through the command: refused before any work, nothing written
+        assert main(["decode", str(fap), "-o", str(tmp_path / "s.glb"), "--csv", str(tmp_path / "s.csv"),
+                     "--obj-sequence", str(tmp_path / "seq")]) == 2
+        assert "--obj-sequence" in one_error_line(capsys)
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["empty", "seq"]
+        assert not any((tmp_path / "empty").iterdir())
+
+
 def test_an_output_folder_exists_or_can_be_made(tmp_path):
     assert check_output_folder("-o", tmp_path / "new" / "deeper") == tmp_path / "new" / "deeper"
     (tmp_path / "file").write_text("x")

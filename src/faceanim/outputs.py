@@ -147,6 +147,8 @@ def check_outputs(outputs: Mapping, *, inputs: Mapping | None = None, force: boo
     written: list[tuple[str, Path, str | None]] = []  # (argument, path, side file kind or None)
     for argument, path, kind in named:
         if kind == SEQUENCE_FOLDER:
+            if path.is_symlink():  # the finished folder is renamed onto the path, which a link would refuse at the end
+                raise InputError(f"{argument} {path}: is a symbolic link; the OBJ sequence needs a new or empty folder")
             if path.exists() and (not path.is_dir() or any(path.iterdir())):
                 raise InputError(f"{argument} {path}: exists and is not an empty folder; the OBJ sequence needs "
                                  "a new one")
