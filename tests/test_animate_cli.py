@@ -143,7 +143,8 @@ def test_decode_onto_the_default_avatar_with_obj_sequence_and_csv(tmp_path, caps
     stream = read_fap(joy)
     lines = csv.read_text().splitlines()
     header = lines[0].split(",")
-    assert len(lines) == 109 and header[:2] == ["frame", "time"] and "12_raise_l_cornerlip" in header
+    assert len(lines) == 109 and header[:3] == ["frame", "timestamp", "success"] and "12_raise_l_cornerlip" in header
+    assert lines[1].split(",")[:3] == ["1", "0.000", "1"]  # the .fap's frame 0 at 0 s, counted from 1
     column = header.index("12_raise_l_cornerlip")
     assert [float(r.split(",")[column]) for r in lines[1:]] == pytest.approx(stream.values[:, 11].tolist())
     (tmp_path / "full").mkdir()

@@ -50,7 +50,9 @@ def test_track_outputs(d18):
     with av.open(str(d18 / "o.mp4")) as container:
         assert sum(1 for _ in container.decode(video=0)) == 216
     rows = (d18 / "l.csv").read_text().splitlines()
-    assert len(rows) == 217 and rows[0].startswith("frame,time,found,filled,x0,y0")
+    assert len(rows) == 217 and rows[0].startswith("frame,timestamp,success,filled,x0,y0")
+    first, last = rows[1].split(","), rows[-1].split(",")
+    assert first[:3] == ["1", f"{track.times[0]:.3f}", "1"] and last[:3] == ["216", f"{track.times[-1]:.3f}", "1"]
 
 
 def test_fap_info_reports(d18, capsys):

@@ -105,15 +105,24 @@ def test_express_and_aus_refuse_outputs_they_cannot_write(tmp_path, capsys):
 def test_au_csv_has_openface_columns_and_scale(tmp_path):
     from faceanim.export import write_au_csv
 
-    values = np.array([[0.2, 1.0], [0.5, 0.0], [np.nan, np.nan]])
-    header = write_au_csv(tmp_path / "a.csv", (1, 12), values, 25.0, success=[True, True, False])
-    assert header == ["frame", "timestamp", "success", "AU01_r", "AU12_r"]
+    values = np.array([[0.2, 1.0], [0.5, 0.0], [np.nan, np.nan], [1.7, 0.1]])
+    pose = [[0.1, -0.2, 0.0]] * 4
+    header = write_au_csv(tmp_path / "a.csv", (1, 12), values, [0.0, 0.04, 0.08, 0.121],
+                          success=[True, True, False, True], pose=pose)
+    assert header == ["frame", "face_id", "timestamp", "confidence", "success", "pose_Rx", "pose_Ry", "pose_Rz",
+                      "AU01_r", "AU12_r", "AU01_c", "AU12_c"]
     rows = (tmp_path / "a.csv").read_text().splitlines()
-    assert rows[1:] == ["1,0.000,1,1.00,5.00", "2,0.040,1,2.50,0.00", "3,0.080,0,0.00,0.00"]
+    assert rows[0] == ", ".join(header)  # OpenFace separates its cells with ", "
+    assert rows[1:] == ["1, 0, 0.000, 1.00, 1, 0.100, -0.200, 0.000, 1.00, 5.00, 1, 1",
+                        "2, 0, 0.040, 1.00, 1, 0.100, -0.200, 0.000, 2.50, 0.00, 1, 0",
+                        "3, 0, 0.080, 0.00, 0, 0.000, 0.000, 0.000, 0.00, 0.00, 0, 0",
+                        "4, 0, 0.121, 1.00, 1, 0.100, -0.200, 0.000, 5.00, 0.50, 1, 0"]  # 1.7 reads 5, never more
+    with pytest.raises(ValueError, match="must have 4 rows"):
+        write_au_csv(tmp_path / "b.csv", (1, 12), values, [0.0, 0.04])
 
 
 def _read_aus(path):
-    rows = list(csv.reader(open(path)))
+    rows = list(csv.reader(open(path), skipinitialspace=True))
     header = rows[0]
     return header, np.array([[float(x) for x in row] for row in rows[1:]])
 
@@ -125,8 +134,14 @@ def test_aus_reads_mouth_opening_on_d18(tmp_path):
     out = tmp_path / "d18.csv"
     assert main(["aus", str(video), "-o", str(out)]) == 0
     header, values = _read_aus(out)
-    assert header[:4] == ["frame", "timestamp", "success", "AU01_r"] and "AU45_r" in header
-    assert len(values) == 216 and values[:, 2].all()
+    assert header[:9] == ["frame", "face_id", "timestamp", "confidence", "success", "pose_Rx", "pose_Ry", "pose_Rz",
+                          "AU01_r"] and "AU45_r" in header and "AU45_c" in header
+    assert len(values) == 216 and values[:, 4].all()
+    r = values[:, [i for i, name in enumerate(header) if name.endswith("_r") and name.startswith("AU")]]
+    assert r.min() >= 0 and r.max() <= 5.0
+    c = values[:, [i for i, name in enumerate(header) if name.endswith("_c")]]
+    np.testing.assert_array_equal(c, r >= 1.0)
+    assert np.abs(values[:, 5:8]).max() < 1.0  # head angles in radians, a face towards the camera
     opening = values[:, header.index("AU26_r")] + values[:, header.index("AU27_r")]
     from faceanim.pipeline import capture_motion
 

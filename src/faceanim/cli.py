@@ -42,6 +42,9 @@ def _force_argument(p) -> None:
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="faceanim", description="The motion of a real face onto any 3D face.")
+    from . import __version__
+
+    parser.add_argument("--version", action="version", version=f"faceanim {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = commands.add_parser("transfer", help="put a source face's expression on a target face",
@@ -151,8 +154,9 @@ def _parser() -> argparse.ArgumentParser:
 
     p = commands.add_parser("aus", help="FACS action-unit intensities of a video, as CSV",
                             description="Track the face, take head motion out, and fit the muscles' action units "
-                                        "to each frame (bounded least squares). The CSV has OpenFace's columns "
-                                        "(frame, timestamp, success, AU01_r, ...) on its 0-5 scale.")
+                                        "to each frame (bounded least squares). The CSV is OpenFace 2.2's (frame, "
+                                        "face_id, timestamp, confidence, success, pose_Rx-Rz, AU01_r, ..., "
+                                        "AU01_c, ...; intensities 0-5), timed by the video's own timestamps.")
     p.add_argument("video", metavar="VIDEO")
     p.add_argument("-o", "--output", required=True, metavar="AUS.csv")
     _capture_arguments(p, filters="the temporal filters (landmarks and AU curves)")

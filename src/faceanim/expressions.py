@@ -181,7 +181,8 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
     rest = target.mesh.vertices
     animation = Animation.streamed(target.mesh, lambda a, b: rest + fields(a, b), count, fps)
     suffix = output.suffix.lower()
-    with spilled(animation, progress=shown if frames is not None else None, desc="making the expression") as kept:
+    with spilled(animation, folder=output.parent, progress=shown if frames is not None else None,
+                 desc="making the expression") as kept:
         if suffix == ".obj":
             write_mesh(output, target.mesh.with_vertices(kept.chunk(0, 1)[0]), force=force)
         elif suffix == ".fap":
@@ -214,26 +215,36 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
 
 
 def aus(video, output, *, neutral=None, smoothing=True, progress=None):
-    """``faceanim aus``: per-frame FACS AU intensities of a video, as a CSV with OpenFace's column
-    names (``frame, timestamp, success, AU01_r, ...``) on OpenFace's 0-5 scale. Returns
-    ``(AU numbers, (T, A) intensities on the 0-1 scale)``."""
+    """``faceanim aus``: per-frame FACS AU intensities of a video (or a saved ``.npz`` track), as
+    OpenFace 2.2's CSV (``frame, face_id, timestamp, confidence, success, pose_R*, AU*_r, AU*_c``; see
+    :mod:`faceanim.export.curves`), timed by the video's own presentation times. Returns ``(AU numbers,
+    (T, A) intensities on the 0-1 scale)`` (the CSV's ``AU*_r`` are these times 5, at most 5)."""
     from .capture.smoothing import OneEuro, one_euro
-    from .export.curves import write_au_csv
+    from .capture.track import Track, track_video
+    from .export.curves import openface_pose, write_au_csv
     from .generic import landmark_target
-    from .inputs import capture_motion
+    from .inputs import _check_neutral_image, motion_of_track
+    from .motion import _rotation_part
     from .outputs import check_outputs
+    from .progress import as_progress
     from .synth import MuscleFace
     from .synth.fitting import AuFitter, bilateral
 
     output = Path(output)
     check_outputs({"-o": (output, ".csv")}, inputs={"VIDEO": video, "--neutral": neutral})
-    motion = capture_motion(video, neutral=neutral, smoothing=smoothing, progress=progress)
+    if neutral is not None:
+        _check_neutral_image(neutral)  # before the video is tracked, not after
+    source = Path(video)
+    recorded = (Track.load(source) if source.suffix.lower() == ".npz"
+                else track_video(source, progress=as_progress(progress)))
+    motion = motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
     face = MuscleFace(landmark_target(motion.neutral[:468]))
     fitter = AuFitter(face, motion.names[:468])
     values = fitter.read_motion(motion)
     if smoothing:
-        times = np.arange(len(values)) / motion.fps
-        values = np.clip(one_euro(values[:, :, None], times, OneEuro(min_cutoff=2.0, beta=0.5))[:, :, 0], 0, 2)
+        values = np.clip(one_euro(values[:, :, None], recorded.times, OneEuro(min_cutoff=2.0, beta=0.5))[:, :, 0],
+                         0, 2)
     numbers, table = bilateral(fitter.codes, values)
-    write_au_csv(output, numbers, table, motion.fps, motion.valid)
+    pose = openface_pose(_rotation_part(motion.pose))
+    write_au_csv(output, numbers, table, recorded.times, recorded.valid & motion.valid, pose=pose)
     return numbers, table

@@ -153,26 +153,10 @@ def track(video, output, *, overlay=None, csv=None, start_face: str = "largest",
             for frame in shown.bar(overlay_frames(result, pose), total=len(result), desc="drawing the overlay"):
                 write(frame)
     if csv is not None:
-        _write_landmark_csv(result, csv)
+        from .export.curves import write_landmark_csv
+
+        write_landmark_csv(csv, result)
     return result
-
-
-def _write_landmark_csv(result, path) -> None:
-    from .atomic import atomic_output
-
-    pixels = result.pixels()
-    count = pixels.shape[1]
-    header = ["frame", "time", "found", "filled"] + [f"{axis}{i}" for i in range(count) for axis in "xy"]
-    header += list(result.blendshape_names)
-    rows = [",".join(header)]
-    for t in range(len(result)):
-        cells = [str(t), f"{result.times[t]:.4f}", str(int(result.valid[t])), str(int(result.filled[t]))]
-        cells += ["" if not np.isfinite(v) else f"{v:.2f}" for v in pixels[t].ravel()]
-        if result.blendshapes is not None:
-            cells += ["" if not np.isfinite(v) else f"{v:.4f}" for v in result.blendshapes[t]]
-        rows.append(",".join(cells))
-    with atomic_output(path, suffix=".csv") as tmp:
-        tmp.write_text("\n".join(rows) + "\n")
 
 
 def encode(source, output, *, neutral=None, smoothing=True, progress=None):
@@ -232,11 +216,14 @@ def avatar(photo, output):
     return target
 
 
-def _write_extra_outputs(animation, stream, obj_sequence, csv, progress) -> None:
+def _write_extra_outputs(animation, stream, obj_sequence, csv, progress, recorded=None) -> None:
+    """The ``--csv`` FAP curves (timed by the video's own presentation times where a Track ``recorded``
+    is given) and the ``--obj-sequence``."""
     from .export import write_fap_csv, write_obj_sequence
 
     if csv is not None:
-        write_fap_csv(csv, stream)
+        timing = {} if recorded is None else {"times": recorded.times, "success": recorded.valid}
+        write_fap_csv(csv, stream, **timing)
     if obj_sequence is not None:
         progress.status(f"writing {len(animation)} OBJ files into {obj_sequence}")
         write_obj_sequence(obj_sequence, animation)
@@ -305,7 +292,8 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     ``target``, a ready :class:`~faceanim.target.Target`, stands in for the mesh and its points;
     ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None);
     ``parts``, a ``PARTS.json`` (see :func:`~faceanim.parts.read_parts_file`), labels the target's parts
-    where its file and its geometry do not tell them apart."""
+    where its file and its geometry do not tell them apart. Returns the streamed
+    :class:`~faceanim.geometry.animation.Animation`: reading its frames deforms them again."""
     from .mpeg4.fapfile import read_fap
     from .progress import as_progress
     from .retarget.decode import animate_faps
@@ -320,7 +308,7 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
     shown.status(f"playing {len(stream)} frames of FAPs on the target ({len(target.mesh.vertices):,} vertices)")
     animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
-    with spilled(animation, progress=shown) as kept:  # deformed once, read by every output
+    with spilled(animation, folder=output.parent, progress=shown) as kept:  # deformed once, read by each output
         shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
         _write_glb(output, kept, unit)
         _write_extra_outputs(kept, stream, obj_sequence, csv, shown)
@@ -339,7 +327,9 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     ``via="motion"`` follows the tracked Motion directly (every point the target shares, in 3D);
     a target sharing too few points (a JSON file of other names) falls back to the FAPs, with a
     warning. ``via="faps"`` plays the FAP stream, as ``decode`` would play the ``.fap`` file.
-    ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None)."""
+    ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None).
+    Returns ``(animation, stream)``: the streamed :class:`~faceanim.geometry.animation.Animation`
+    (reading its frames deforms them again) and the FAPs."""
     from .capture.headframe import head_frame
     from .capture.neutral import parse_neutral
     from .capture.overlay import overlay_frames
@@ -373,10 +363,10 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
         animation = animate_motion(motion, target, head_motion=head_motion, gaze=stream, parts=pieces)
     else:
         animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
-    with spilled(animation, progress=shown) as kept:  # deformed once, read by every output
+    with spilled(animation, folder=output.parent, progress=shown) as kept:  # deformed once, read by each output
         shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
         _write_glb(output, kept, unit)
-        _write_extra_outputs(kept, stream, obj_sequence, csv, shown)
+        _write_extra_outputs(kept, stream, obj_sequence, csv, shown, recorded)
         if fap is not None:
             write_fap(fap, stream)
         if preview is not None:
