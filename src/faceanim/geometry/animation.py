@@ -118,12 +118,14 @@ class Animation:
 
 
 @contextlib.contextmanager
-def spilled(animation: Animation, *, progress=None, desc: str = "deforming"):
+def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "deforming"):
     """Yield ``animation`` with its frames made once and kept in a temporary file, read back in chunks.
 
     The file holds each frame's displacement from the rest as float32 (what a glTF file keeps, to
     about 1e-7 of the motion's size); it has no name in any folder (it is unlinked as it is made), so
-    nothing is left behind however the process ends. A held animation is yielded as it is.
+    nothing is left behind however the process ends. It goes in ``folder`` (the jobs pass their
+    output's folder: the disk the results go to), else the system's temporary folder (``TMPDIR``;
+    where that is a tmpfs, the frames cost memory after all). A held animation is yielded as it is.
     ``progress`` (a :class:`~faceanim.progress.Progress`) shows the frames being made, as ``desc``.
 
     >>> mesh = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
@@ -143,7 +145,7 @@ def spilled(animation: Animation, *, progress=None, desc: str = "deforming"):
         return
     rest = animation.mesh.vertices
     frame_bytes = rest.size * 4
-    with tempfile.TemporaryFile(prefix="faceanim-frames-") as store:
+    with tempfile.TemporaryFile(prefix=".faceanim-frames-", dir=folder) as store:
         for frame in as_progress(progress).bar(animation.frames(), total=len(animation), desc=desc):
             store.write((frame - rest).astype(np.float32).tobytes())
         store.flush()
