@@ -113,6 +113,19 @@ def test_a_folder_that_cannot_be_written_in_is_named(tmp_path, monkeypatch):
         check_output_folder("-o", tmp_path / "demo")
 
 
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux's /proc, a folder no file can be made in")
+def test_a_folder_where_no_file_can_be_made_is_refused_before_any_work(tmp_path, capsys):
+    """/proc passes the permission check (root may write anywhere) yet takes no new file: the output
+    used to fail after the work, naming the hidden temporary file."""
+    fap = tmp_path / "f.fap"
+    fap.write_text("not read: the output is refused first")
+    assert main(["decode", str(fap), "-o", "/proc/faceanim-x.glb"]) == 2
+    assert capsys.readouterr().err == "faceanim: error: -o /proc/faceanim-x.glb: no file can be made in /proc " \
+                                      "(No such file or directory)\n"
+    with pytest.raises(InputError, match="^-o /proc/faceanim-demo: no file can be made in /proc"):
+        check_output_folder("-o", "/proc/faceanim-demo")
+
+
 def test_the_sequence_folder_is_new_or_empty_and_holds_only_the_sequence(tmp_path):
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "keep.txt").write_text("mine")

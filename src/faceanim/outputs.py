@@ -16,6 +16,7 @@ refuses to replace a file of either name that it did not write, unless ``force``
 from __future__ import annotations
 
 import os
+import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -94,6 +95,18 @@ def _check_folder(argument: str, path: Path) -> None:
         raise InputError(f"{argument} {path}: {parent} is not a folder")
     if not os.access(parent, os.W_OK | os.X_OK):
         raise InputError(f"{argument} {path}: the folder {parent} is not writable")
+    _check_creatable(argument, path, parent)
+
+
+def _check_creatable(argument: str, path: Path, folder: Path) -> None:
+    """A file can be made in ``folder`` (and is removed at once): permissions alone do not say so for
+    /proc, /sys, a read-only mount or a full disk, which would fail only when the output is written."""
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".faceanim-probe-", dir=folder)
+    except OSError as exc:
+        raise InputError(f"{argument} {path}: no file can be made in {folder} ({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(probe)
 
 
 def check_output_folder(argument: str, folder) -> Path:
@@ -105,12 +118,14 @@ def check_output_folder(argument: str, folder) -> Path:
             raise InputError(f"{argument} {folder}: exists and is not a folder")
         if not os.access(folder, os.W_OK | os.X_OK):
             raise InputError(f"{argument} {folder}: the folder is not writable")
+        _check_creatable(argument, folder, folder)
         return folder
     existing = next(p for p in folder.absolute().parents if p.exists())
     if not existing.is_dir():
         raise InputError(f"{argument} {folder}: {existing} is not a folder")
     if not os.access(existing, os.W_OK | os.X_OK):
         raise InputError(f"{argument} {folder}: the folder {existing} is not writable")
+    _check_creatable(argument, folder, existing)
     return folder
 
 
