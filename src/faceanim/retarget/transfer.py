@@ -7,11 +7,13 @@ Two routes, for two situations:
   interpolation with a falloff, :class:`~faceanim.geometry.surface.BiharmonicInterpolation`), so
   motion does not leak across the mouth or the eyelids; the thesis' Euclidean RBF is an option.
 * **dense** (``method="clone"``): the whole source mesh moved (a model, a synthesised expression).
-  The source is warped onto the target through the control pairs, each target vertex is projected
-  onto the warped source, and the source's displacement at the landing point is carried across
-  (expression cloning, Noh & Neumann 2001; the seed's simple-face-to-real-face projection). The
-  projection only accepts source triangles that face the same way as the target vertex, so the
-  underside of the upper lip cannot land on the lower lip it touches.
+  The source is registered onto the target (a thin-plate warp through the control pairs, then
+  non-rigid ICP with the face's contours matched as curves, :mod:`~faceanim.retarget.correspondence`),
+  each target vertex is projected onto the registered source, and the source's displacement at the
+  landing point is carried across (expression cloning, Noh & Neumann 2001; the seed's
+  simple-face-to-real-face projection). The projection only accepts source triangles that face the
+  same way as the target vertex, so the underside of the upper lip cannot land on the lower lip it
+  touches.
 
 Both routes are linear in the source motion: the correspondence is computed once and every frame
 costs one (sparse) matrix product.
@@ -24,17 +26,21 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import sparse
 
+from ..geometry.fastop import Float32Operator
 from ..geometry.mesh import Mesh
+from ..geometry.nicp import NicpOptions
 from ..geometry.project import project_points
 from ..geometry.rbf import RbfWarp, apply_operator
 from ..geometry.surface import BiharmonicInterpolation, SurfaceRbf
 from ..geometry.topology import component_labels
 from ..validation import as_array, as_index_array
+from .correspondence import register_faces
 
 __all__ = ["ControlPairs", "SparseTransfer", "DenseTransfer", "transfer_expression", "METHODS", "METRICS"]
 
 METHODS = ("rbf", "clone")
 METRICS = ("surface", "euclidean", "geodesic")
+FAST_FRAMES = 16  # SparseTransfer applies runs of this many frames or more in float32
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,12 +104,27 @@ class SparseTransfer:
             local_operator = warp.operator(part.vertices)
         self.operator = np.zeros((len(target.vertices), len(ids)))
         self.operator[kept] = local_operator
+        self._fast = None
+
+    @property
+    def fast(self) -> Float32Operator:
+        """The operator in float32 (:class:`~faceanim.geometry.fastop.Float32Operator`), made on first use."""
+        if self._fast is None:
+            self._fast = Float32Operator(self.operator)
+        return self._fast
 
     def __call__(self, displacements) -> np.ndarray:
+        """Displacements ``(V, 3)`` or ``(T, V, 3)`` from control ones ``(K, 3)`` or ``(T, K, 3)``.
+
+        Runs of :data:`FAST_FRAMES` frames or more go through the float32 operator (twice the
+        speed; each coordinate within ``self.fast.worst_case * max|displacements|`` of the float64
+        product, guaranteed); shorter ones through the float64 product."""
         displacements = as_array(displacements, "displacements")
         if displacements.ndim not in (2, 3) or displacements.shape[-2:] != (self.operator.shape[1], 3):
             raise ValueError(f"displacements must have shape ({self.operator.shape[1]}, 3) or "
                              f"(T, {self.operator.shape[1]}, 3), got {displacements.shape}")
+        if displacements.ndim == 3 and len(displacements) >= FAST_FRAMES:
+            return self.fast(displacements)
         return apply_operator(self.operator, displacements)
 
 
@@ -117,28 +138,55 @@ class DenseTransfer:
         At least 4 corresponding vertices, spread over the face.
     max_angle : float
         Degrees; a target vertex only lands on source triangles whose normal is within this angle
-        of its own (after the warp). 180 turns the test off.
+        of its own (after the registration). 180 turns the test off.
+    register : bool
+        True (default): the source is registered onto the target densely (non-rigid ICP with the
+        pairs as landmarks and the face's contours as curves, cached per pair of meshes; see
+        :mod:`~faceanim.retarget.correspondence`). False: only the thin-plate warp through the pairs
+        (the thesis' clone; kept for comparison).
+    contours : {"auto", "ibug68", "thesis16"} or None
+        The pairs' layout, whose contours are matched as curves; ``auto`` takes 68 pairs as iBUG.
+    options : NicpOptions, optional
+        Settings of the registration.
+
+    Raises
+    ------
+    InputError
+        The registration did not converge (the pairs do not mark the same places on both faces,
+        or the faces are too unlike); the message gives the residuals reached.
 
     Only the parts (connected components) of either mesh that hold a control vertex take part: a
     target face never lands on the source's teeth, eyeballs or lashes, and the target's own separate
     parts (teeth, eyeballs) keep still.
     """
 
-    def __init__(self, source: Mesh, target: Mesh, pairs: ControlPairs, *, max_angle: float = 60.0):
+    def __init__(self, source: Mesh, target: Mesh, pairs: ControlPairs, *, max_angle: float = 60.0,
+                 register: bool = True, contours: str | None = "auto", options: NicpOptions | None = None):
         if len(pairs.source) < 4:
             raise ValueError(f"the clone method needs at least 4 control pairs, got {len(pairs.source)}")
-        used = _components_with(source, pairs.source)
-        src_pts = source.vertices[pairs.source]
-        dst_pts = target.vertices[pairs.target]
-        # Thin-plate: the smoothest warp through the pairs, exact for any affine difference in pose or size.
-        warp = RbfWarp(src_pts, dst_pts - src_pts, kernel="thin_plate")
-        warped = Mesh(source.vertices + warp(source.vertices), source.triangles[used])
+        if register:
+            reg = register_faces(source, target, pairs.source, pairs.target, contours=contours,
+                                 options=NicpOptions() if options is None else options)
+            warped, columns = reg.mesh, reg.source_vertices
+            self.registration = reg
+        else:
+            used = _components_with(source, pairs.source)
+            src_pts = source.vertices[pairs.source]
+            dst_pts = target.vertices[pairs.target]
+            # Thin-plate: the smoothest warp through the pairs, exact for any affine difference in pose or size.
+            warp = RbfWarp(src_pts, dst_pts - src_pts, kernel="thin_plate")
+            warped, columns = Mesh(source.vertices + warp(source.vertices), source.triangles[used]), None
+            self.registration = None
         _, moving = _moving_part(target, pairs.target)
         self.projection = project_points(warped, target.vertices[moving], normals=target.vertex_normals[moving],
                                          max_angle=max_angle)
+        weights = self.projection.matrix(len(warped.vertices))
+        if columns is not None:  # the registered part's vertices back to the source's own ids
+            weights = weights @ sparse.csr_matrix((np.ones(len(columns)), (np.arange(len(columns)), columns)),
+                                                  shape=(len(columns), len(source.vertices)))
         # Rows of target vertices in parts without a control pair (teeth, eyeballs) stay empty: they keep still.
         spread = sparse.eye(len(target.vertices), format="csr")[:, moving]
-        self.matrix = sparse.csr_matrix(spread @ self.projection.matrix(len(source.vertices)))
+        self.matrix = sparse.csr_matrix(spread @ weights)
 
     def __call__(self, source_displacements) -> np.ndarray:
         """Target displacements ``(Vt, 3)`` or ``(T, Vt, 3)`` from source ones ``(Vs, 3)`` / ``(T, Vs, 3)``."""

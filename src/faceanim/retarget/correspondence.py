@@ -1,0 +1,139 @@
+"""Dense correspondence between two faces: the source registered onto the target, cached per pair.
+
+The source's parts that hold a control point are warped through the control pairs (a thin-plate
+spline, exact for any affine difference in pose and size), then registered onto the target's surface
+by optimal-step non-rigid ICP (:func:`~faceanim.geometry.nicp.register_surface`), with the control
+points as landmarks and, for a known control-point layout, the face's contours (lip lines, eyelids,
+brows, nose) matched as curves (:mod:`~faceanim.retarget.contours`) as further landmarks at half
+weight.
+
+A registration takes seconds to tens of seconds (26,719 vertices), so it is kept in an in-process
+LRU cache of the last :data:`CACHE_SIZE` registrations, keyed by SHA-1 digests of both meshes'
+vertices and triangles, the control pairs, the contour layout and the options. Nothing is written
+to disk: a registration is tied to the exact meshes, and a stale file cache could hand back one
+made for another version of a mesh.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.mesh import Mesh
+from ..geometry.nicp import NicpOptions, register_surface
+from ..geometry.rbf import RbfWarp
+from ..geometry.topology import component_labels
+from .contours import LANDMARK_WEIGHTS, LAYOUT_SIZES, LAYOUTS, matched_contours
+
+__all__ = ["FaceRegistration", "register_faces", "CACHE_SIZE", "CONTOUR_WEIGHT"]
+
+CACHE_SIZE = 8
+CONTOUR_WEIGHT = 0.5  # landmark weight of a contour point, relative to a control point
+_cache: OrderedDict = OrderedDict()
+
+
+@dataclass(frozen=True, eq=False)
+class FaceRegistration:
+    """``mesh``: the source's registered part (its own triangles, target units); ``source_vertices (N,)``:
+    the source vertex id of each of its vertices; ``fit`` and ``landmark_error`` as in
+    :class:`~faceanim.geometry.nicp.Registration`; ``contour_points``: how many contour points held it."""
+
+    mesh: Mesh
+    source_vertices: np.ndarray
+    fit: float
+    landmark_error: float
+    contour_points: int
+
+
+def _digest(*arrays) -> str:
+    h = hashlib.sha1()
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype.str, a.shape)).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def register_faces(source: Mesh, target: Mesh, source_ids, target_ids, *, contours: str | None = "auto",
+                   options: NicpOptions | None = None) -> FaceRegistration:
+    """Register the source face onto the target face (cached; see the module text).
+
+    Parameters
+    ----------
+    source, target : Mesh
+    source_ids, target_ids : (K,) int64
+        Control pairs, ``K >= 4``.
+    contours : {"auto", "ibug68", "thesis16"} or None
+        The control points' layout, whose contours are matched as curves. ``auto``: ``ibug68`` for
+        68 pairs (the iBUG / Multi-PIE order), none otherwise.
+    options : NicpOptions, optional
+
+    Raises
+    ------
+    InputError
+        The registration did not converge (the message gives the residuals reached).
+    """
+    options = NicpOptions() if options is None else options
+    source_ids = np.asarray(source_ids, dtype=np.int64)
+    target_ids = np.asarray(target_ids, dtype=np.int64)
+    if contours == "auto":
+        contours = "ibug68" if len(source_ids) == 68 else None
+    if contours is not None and contours not in LAYOUTS:
+        raise ValueError(f"contours must be 'auto', None or one of {', '.join(LAYOUTS)}, got {contours!r}")
+    if contours is not None and len(source_ids) != LAYOUT_SIZES[contours]:
+        raise ValueError(f"the {contours} layout has {LAYOUT_SIZES[contours]} control points, "
+                         f"got {len(source_ids)} pairs")
+    key = (_digest(source.vertices, source.triangles), _digest(target.vertices, target.triangles),
+           _digest(source_ids, target_ids), contours, repr(options))
+    if key in _cache:
+        _cache.move_to_end(key)
+        return _cache[key]
+    result = _register(source, target, source_ids, target_ids, contours, options)
+    _cache[key] = result
+    while len(_cache) > CACHE_SIZE:
+        _cache.popitem(last=False)
+    return result
+
+
+def _part_with(mesh: Mesh, ids: np.ndarray) -> tuple[Mesh, np.ndarray, np.ndarray]:
+    """The parts (connected components) of ``mesh`` that hold any of ``ids``: the sub-mesh, its
+    vertices' ids in ``mesh``, and ``ids`` in the sub-mesh."""
+    label = component_labels(mesh)
+    keep = np.isin(label, np.unique(label[ids]))
+    keep &= np.isin(np.arange(len(mesh.vertices)), np.unique(mesh.triangles))
+    kept = np.flatnonzero(keep)
+    index = np.full(len(mesh.vertices), -1)
+    index[kept] = np.arange(len(kept))
+    tris = index[mesh.triangles]
+    return Mesh(mesh.vertices[kept], tris[(tris >= 0).all(axis=1)]), kept, index[ids]
+
+
+def _register(source, target, source_ids, target_ids, contours, options) -> FaceRegistration:
+    # Only the parts that hold control points take part: not the teeth, eyeballs or lashes of either.
+    part, kept, local = _part_with(source, source_ids)
+    target, _, target_ids = _part_with(target, target_ids)
+
+    landmarks, points = local, target.vertices[target_ids]
+    weights = np.ones(len(local))
+    if contours is not None:
+        for k, w in LANDMARK_WEIGHTS.get(contours, {}).items():
+            weights[k] = w
+        on_curve, curve_points = matched_contours(part, target, local, target_ids, contours)
+        landmarks = np.r_[landmarks, on_curve]
+        points = np.r_[points, curve_points]
+        weights = np.r_[weights, np.full(len(on_curve), CONTOUR_WEIGHT)]
+    src_pts = part.vertices[local]
+    warp = RbfWarp(src_pts, target.vertices[target_ids] - src_pts, kernel="thin_plate")
+    start = part.vertices + warp(part.vertices)
+    reg = register_surface(part, target, source_landmarks=landmarks, target_points=points,
+                           landmark_weights=weights, initial=start, options=options)
+    return FaceRegistration(Mesh(reg.vertices, part.triangles), kept, reg.fit, reg.landmark_error,
+                            len(landmarks) - len(local))
+
+
+def clear_cache() -> None:
+    """Forget every cached registration."""
+    _cache.clear()
