@@ -132,3 +132,22 @@ def test_sparse_transfer_runs_long_motions_in_float32_within_the_bound():
     assert np.abs(fast - exact).max() <= spread.fast.worst_case * np.abs(frames).max()
     assert spread.fast.worst_case < 1e-4  # a surface operator's rows are small: the guarantee is tight
     np.testing.assert_allclose(spread(frames[:2]), exact[:2], rtol=0, atol=1e-12)  # short runs: float64
+
+
+def test_the_transfer_command_refuses_pairs_that_do_not_fit_and_writes_nothing(tmp_path):
+    import json
+
+    from faceanim import pipeline
+    from faceanim.geometry import write_mesh
+
+    source = dome()
+    target = source.with_vertices(bend(source.vertices))
+    for name, mesh in (("a.obj", source), ("b.obj", source), ("t.obj", target)):
+        write_mesh(tmp_path / name, mesh)
+    ids = [0, 23, 552, 575, 287]
+    (tmp_path / "pairs.json").write_text(json.dumps({"source": ids, "target": [287, 575, 552, 23, 0]}))
+    out = tmp_path / "out.obj"
+    with pytest.raises(InputError, match=r"^the dense registration did not converge: .* landmarks are [0-9.e+-]+ "):
+        pipeline.transfer(tmp_path / "a.obj", tmp_path / "b.obj", tmp_path / "t.obj", out,
+                          correspondence=tmp_path / "pairs.json", method="clone")
+    assert not out.exists()
