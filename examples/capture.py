@@ -28,6 +28,8 @@ def main(video, folder) -> dict:
     strongest = numbers[int(intensities.max(axis=0).argmax())]
     print(f"{len(numbers)} action units; the strongest is AU{strongest}")
     print(faceanim.fap_info(folder / "faps.fap").splitlines()[0])
+    # faceanim plot aus.csv -o aus.png   (a panel per group of the face; needs the plot extra)
+    faceanim.plot(folder / "aus.csv", folder / "aus.png")
     return {"track": track, "stream": stream, "aus": (numbers, intensities)}
 
 

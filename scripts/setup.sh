@@ -20,7 +20,7 @@ if ((${#missing[@]})) && command -v apt-get >/dev/null 2>&1; then
   apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
     "${missing[@]}" >/dev/null
 fi
-python3 -m pip install --quiet --disable-pip-version-check -e ".[capture,render,test]"
+python3 -m pip install --quiet --disable-pip-version-check -e ".[capture,render,plot,batch,test]"
 # Node tools the tests use (they skip where Node.js is absent): the Khronos glTF validator, and
 # playwright-core, which drives Debian's Chromium for the viewer's browser tests (no browser download).
 if command -v npm >/dev/null 2>&1; then

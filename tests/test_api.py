@@ -53,7 +53,7 @@ def test_capture_example_runs(tmp_path, monkeypatch):
     example = runpy.run_path(str(ROOT / "examples" / "capture.py"))
     made = example["main"](video, tmp_path)
     assert len(made["track"]) == 78 and len(made["stream"]) == 78
-    assert {p.name for p in tmp_path.iterdir()} == {"track.npz", "landmarks.csv", "faps.fap", "aus.csv"}
+    assert {p.name for p in tmp_path.iterdir()} == {"track.npz", "landmarks.csv", "faps.fap", "aus.csv", "aus.png"}
 
 
 def test_expressions_example_runs(tmp_path):

@@ -161,6 +161,15 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, metavar="AUS.csv")
     _capture_arguments(p, filters="the temporal filters (landmarks and AU curves)")
 
+    p = commands.add_parser("plot", help="draw FAP, AU or blendshape curves as a PNG",
+                            description="Draw FILE's curves (a .fap file, an AU CSV from faceanim aus or OpenFace, a "
+                                        "FAP CSV, or a take of blendshapes such as a Live Link Face CSV) as one PNG: "
+                                        "a panel per group of the face (jaw, lips, brows, lids, eyes, cheeks and "
+                                        "nose, head), each on its own scale and unit, over time.")
+    p.add_argument("source", metavar="FILE.fap|AUS.csv|take.csv")
+    p.add_argument("-o", "--output", required=True, metavar="CURVES.png")
+    p.add_argument("--title", help="the figure's title (default: the file's name)")
+
     p = commands.add_parser("fap-info", help="summarise a .fap file",
                             description="Frames, fps, active FAPs with their ranges, and values outside MPEG-4's.")
     p.add_argument("fap", metavar="FILE.fap")
@@ -334,6 +343,11 @@ def _run(args, progress) -> str:
         return f"wrote {args.output}: {len(values)} frames, {len(numbers)} action units"
     if args.command == "fap-info":
         return pipeline.fap_info(args.fap)
+    if args.command == "plot":
+        from .export.plots import plot
+
+        panels = plot(args.source, args.output, title=args.title)
+        return f"wrote {args.output}: " + ", ".join(f"{p.name} ({len(p.curves)})" for p in panels)
     raise AssertionError(f"no handler for the command {args.command!r}")  # argparse allows only the commands above
 
 
