@@ -14,6 +14,7 @@ faceanim`` stays light (numpy, scipy, trimesh) until one is called::
     stream, clipped = faceanim.encode("d0.npz", "d0.fap")                # a FapStream
     numbers, intensities = faceanim.aus("d0.mp4", "d0_aus.csv")          # OpenFace's columns
     faceanim.plot("d0_aus.csv", "d0_aus.png")                            # one panel per group
+    result = faceanim.batch(["videos/"], "out", do="encode,aus", workers=2)   # on Ray; result.table()
 
 >>> import faceanim
 >>> sorted(set(faceanim.JOBS) - set(faceanim.__all__))
@@ -44,6 +45,7 @@ JOBS = {
     "express": ("faceanim.expressions", "express"),
     "aus": ("faceanim.expressions", "aus"),
     "plot": ("faceanim.export.plots", "plot"),
+    "batch": ("faceanim.dataset", "run_batch"),
 }  # no job shares its name with a module of the package (``faceanim.demo`` is the module; its job is run_demo)
 
 __all__ = ["FileFormatError", "InputError", "JOBS", "Mesh", "RbfWarp", "__version__", "read_mesh", "write_mesh",

@@ -170,6 +170,22 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, metavar="CURVES.png")
     p.add_argument("--title", help="the figure's title (default: the file's name)")
 
+    p = commands.add_parser("batch", help="process many videos on Ray (locally or on a cluster)",
+                            description="Run encode, aus and/or animate on every video INPUTS name (files, folders, "
+                                        "globs, or a .csv/.jsonl manifest with a path column and per-row name, "
+                                        "neutral, no_filter, target), one Ray task per video. Each video's outputs "
+                                        "(NAME.fap, NAME_aus.csv, NAME.glb) appear complete or not at all; a video "
+                                        "that fails is listed with its reason and the rest go on; outputs already in "
+                                        "OUTDIR are not made again. Writes OUTDIR/batch_summary.csv.")
+    p.add_argument("inputs", nargs="+", metavar="INPUTS")
+    p.add_argument("-o", "--output", required=True, metavar="OUTDIR")
+    p.add_argument("--do", default="encode", metavar="STEPS",
+                   help="comma-separated: encode, aus, animate (default: encode)")
+    p.add_argument("--target", metavar="MESH", help="the face animate moves (default: the avatar), loaded once")
+    p.add_argument("--workers", type=int, metavar="N", help="videos at once on this machine (default: its cores)")
+    p.add_argument("--address", metavar="ray://HOST:PORT|auto", help="run on this Ray cluster instead")
+    p.add_argument("--force", action="store_true", help="make outputs again even where they are already there")
+
     p = commands.add_parser("fap-info", help="summarise a .fap file",
                             description="Frames, fps, active FAPs with their ranges, and values outside MPEG-4's.")
     p.add_argument("fap", metavar="FILE.fap")
@@ -343,6 +359,12 @@ def _run(args, progress) -> str:
         return f"wrote {args.output}: {len(values)} frames, {len(numbers)} action units"
     if args.command == "fap-info":
         return pipeline.fap_info(args.fap)
+    if args.command == "batch":
+        from .dataset import run_batch
+
+        result = run_batch(args.inputs, args.output, do=args.do, target_mesh=args.target, workers=args.workers,
+                           address=args.address, force=args.force, progress=progress)
+        return result.table()
     if args.command == "plot":
         from .export.plots import plot
 

@@ -1,0 +1,241 @@
+"""Whole datasets: ``faceanim batch`` runs the single commands' work on many videos, one Ray task per
+video, locally (``ray.init(num_cpus=workers)``) or on a cluster (``address``).
+
+Each task tracks its video once and writes the outputs asked for (``encode``: ``NAME.fap``, ``aus``:
+``NAME_aus.csv``, ``animate``: ``NAME.glb``), the same files the single commands write, all together
+or none (:func:`faceanim.atomic.output_group`). A video that cannot be read or shows no face fails
+alone, with its one-line reason, and the others go on. An output already in the folder is not made
+again (``force`` redoes it), so a re-run after a failure or an interrupt does only what is missing.
+The summary (``batch_summary.csv`` in the folder, and a table) gives per video: frames, the share with
+a face tracked, seconds, outputs, error.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import InputError
+from .manifest import STEPS, Video, collect_videos, outputs_of
+
+__all__ = ["run_batch", "BatchResult", "VideoResult", "process_video", "SUMMARY_NAME", "SUMMARY_COLUMNS"]
+
+SUMMARY_NAME = "batch_summary.csv"
+SUMMARY_COLUMNS = ("video", "name", "success", "status", "frames", "tracked", "seconds", "outputs", "error")
+
+
+@dataclass(frozen=True)
+class VideoResult:
+    """What became of one video: ``status`` done, skipped (its outputs were there) or failed."""
+
+    video: str
+    name: str
+    status: str
+    frames: int | None = None
+    tracked: float | None = None  # share of frames with a face found, 0-1
+    seconds: float = 0.0
+    outputs: tuple[str, ...] = ()
+    error: str = ""
+
+
+@dataclass
+class BatchResult:
+    """The summary of a batch: one :class:`VideoResult` per video, in the inputs' order."""
+
+    folder: Path
+    videos: list[VideoResult] = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def failed(self) -> list[VideoResult]:
+        return [v for v in self.videos if v.status == "failed"]
+
+    def table(self) -> str:
+        """The summary as a printed table."""
+        rows = [("video", "status", "frames", "tracked", "seconds", "outputs / error")]
+        for v in self.videos:
+            rows.append((v.name, v.status, "" if v.frames is None else str(v.frames),
+                         "" if v.tracked is None else f"{100 * v.tracked:.0f}%", f"{v.seconds:.1f}",
+                         v.error or " ".join(v.outputs)))
+        widths = [max(len(r[k]) for r in rows) for k in range(5)]
+        lines = ["  ".join(c.ljust(w) if k in (0, 1) else c.rjust(w) for k, (c, w) in enumerate(zip(r, widths,
+                 strict=False))) + "  " + r[5] for r in rows]
+        done = sum(v.status == "done" for v in self.videos)
+        skipped = sum(v.status == "skipped" for v in self.videos)
+        lines.append(f"{len(self.videos)} videos: {done} done, {skipped} skipped (outputs there), {len(self.failed)} "
+                     f"failed, in {self.seconds:.1f} s; summary in {self.folder / SUMMARY_NAME}")
+        return "\n".join(lines)
+
+
+def _one_line(exc: BaseException) -> str:
+    from .errors import InputError as Declared
+
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    if isinstance(exc, (Declared, OSError, ValueError)):
+        return text or type(exc).__name__
+    return f"{type(exc).__name__}: {text}"  # a fault in faceanim: still one line, named as such
+
+
+def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool = False, target=None) -> VideoResult:
+    """Do ``steps`` for one video into ``folder``: track it once, then write each output not already
+    there (all of them with ``force``), together or none. Never raises for the video's own faults
+    (unreadable, no face, a bad option): they come back as a failed :class:`VideoResult`."""
+    from . import pipeline
+    from .atomic import output_group
+    from .capture.track import track_video
+    from .expressions import aus
+
+    start = time.perf_counter()
+    wanted = outputs_of(video, steps, folder)
+    todo = {s: p for s, p in wanted.items() if force or not p.exists()}
+    if not todo:
+        return VideoResult(str(video.path), video.name, "skipped", outputs=tuple(p.name for p in wanted.values()))
+    frames = tracked = None
+    try:
+        if not video.path.is_file():
+            raise InputError(f"{video.path}: no such file")
+        with tempfile.TemporaryDirectory(prefix="faceanim-batch-") as work:
+            track_path = Path(work) / f"{video.name}.npz"
+            if "encode" in todo or "aus" in todo:
+                recorded = track_video(video.path, progress=False)
+                frames, tracked = len(recorded), float(recorded.valid.mean())
+                recorded.save(track_path)  # encode and aus read the track, not the video again
+            with output_group():  # this video's outputs appear together, or none of them
+                if "encode" in todo:
+                    pipeline.encode(track_path, todo["encode"], neutral=video.neutral, smoothing=video.smoothing)
+                if "aus" in todo:
+                    aus(track_path, todo["aus"], neutral=video.neutral, smoothing=video.smoothing)
+                if "animate" in todo:
+                    own = None if video.target is None else pipeline.load_target(video.target)
+                    animation, stream = pipeline.animate(video.path, todo["animate"], target=own or target,
+                                                         neutral=video.neutral, smoothing=video.smoothing)
+                    if frames is None:
+                        frames, tracked = len(animation), float(stream.mask[:, 2:].any(axis=1).mean())
+    except Exception as exc:  # noqa: BLE001 - one video's fault is its own, reported in its row
+        return VideoResult(str(video.path), video.name, "failed", frames, tracked, time.perf_counter() - start,
+                           error=_one_line(exc))
+    return VideoResult(str(video.path), video.name, "done", frames, tracked, time.perf_counter() - start,
+                       tuple(p.name for p in wanted.values()))
+
+
+def _parse_steps(do) -> tuple[str, ...]:
+    steps = tuple(s.strip() for s in (do.split(",") if isinstance(do, str) else do) if s.strip())
+    unknown = [s for s in steps if s not in STEPS]
+    if not steps or unknown:
+        raise InputError(f"--do takes {', '.join(STEPS)} (comma-separated), got {','.join(unknown) or 'nothing'}")
+    return tuple(dict.fromkeys(steps))
+
+
+def _check_address(address: str) -> None:
+    """A ``ray://HOST:PORT`` or ``HOST:PORT`` address answers on TCP (said in one line if not), so a
+    wrong address fails at once, not after Ray's own long wait."""
+    if address == "auto":
+        return
+    where = address.split("://", 1)[-1]
+    host, _, port = where.rpartition(":")
+    if not host or not port.isdigit():
+        raise InputError(f"--address {address}: give ray://HOST:PORT, HOST:PORT or auto")
+    try:
+        socket.create_connection((host, int(port)), timeout=5).close()
+    except OSError as exc:
+        raise InputError(f"--address {address}: no Ray cluster answers there ({exc.strerror or exc})") from None
+
+
+def _start_ray(workers: int | None, address: str | None):
+    try:
+        import ray
+    except ImportError:
+        raise ImportError("faceanim batch needs Ray: pip install 'faceanim[batch]'") from None
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")  # nothing leaves the machine
+    if address is not None:
+        _check_address(address)
+        try:
+            ray.init(address=address, log_to_driver=False, logging_level="error")
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            raise InputError(f"--address {address}: {_one_line(exc)}") from None
+    else:
+        ray.init(num_cpus=workers or os.cpu_count(), include_dashboard=False, log_to_driver=False,
+                 logging_level="error")
+    return ray
+
+
+def _write_summary(folder: Path, result: BatchResult) -> None:
+    from .atomic import atomic_output
+
+    lines = [",".join(SUMMARY_COLUMNS)]
+    for v in result.videos:
+        cells = [v.video, v.name, "0" if v.status == "failed" else "1", v.status,
+                 "" if v.frames is None else str(v.frames), "" if v.tracked is None else f"{v.tracked:.4f}",
+                 f"{v.seconds:.2f}", " ".join(v.outputs), v.error]
+        lines.append(",".join('"' + c.replace('"', '""') + '"' if any(x in c for x in ',"\n') else c for c in cells))
+    with atomic_output(folder / SUMMARY_NAME) as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
+
+
+def run_batch(inputs, output, *, do=("encode",), target_mesh=None, workers: int | None = None,
+              address: str | None = None, force: bool = False, progress=None) -> BatchResult:
+    """``faceanim batch``: ``do`` (``encode``, ``aus``, ``animate``, or a comma-separated string) for
+    every video named by ``inputs`` (files, folders, globs, manifests: see
+    :func:`~faceanim.manifest.collect_videos`), one Ray task per video, outputs into the folder
+    ``output`` (made if missing). ``target_mesh``: the face ``animate`` moves (default: the avatar),
+    loaded once; ``workers``: tasks at once on this machine (default: its cores); ``address``: a Ray
+    cluster (``ray://HOST:PORT``, ``HOST:PORT`` or ``auto``) instead; ``force``: redo outputs already
+    there. Returns the :class:`BatchResult`; writes ``batch_summary.csv`` beside the outputs.
+
+    Raises
+    ------
+    InputError
+        Before any work and with nothing written: a bad input or manifest, an output folder that is a
+        file, a bad ``do`` or ``workers``, an unreachable ``address``, a target that cannot be loaded.
+    """
+    from .outputs import check_output_folder
+    from .progress import as_progress
+
+    start = time.perf_counter()
+    steps = _parse_steps(do)
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise InputError(f"--workers must be a whole number from 1, got {workers!r}")
+    if workers is not None and address is not None:
+        raise InputError("--workers sets up a local Ray; a cluster given by --address has its own workers")
+    folder = check_output_folder("-o", output)
+    videos = collect_videos(inputs)
+    shown = as_progress(progress)
+    target = None
+    if "animate" in steps and any(v.target is None for v in videos):
+        from .inputs import load_target
+
+        if target_mesh is not None and not Path(target_mesh).is_file():
+            raise InputError(f"--target {target_mesh}: no such file")
+        target = load_target(target_mesh, progress=shown)  # once, shared by every task through Ray's store
+    ray = _start_ray(workers, address)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        task = ray.remote(num_cpus=1, max_retries=0)(process_video)
+        shared = ray.put(target)
+        pending = {task.remote(v, steps, folder.absolute(), force=force, target=shared): k
+                   for k, v in enumerate(videos)}
+        results: list[VideoResult | None] = [None] * len(videos)
+
+        def finished():
+            waiting = list(pending)
+            while waiting:
+                done, waiting = ray.wait(waiting, num_returns=1)
+                results[pending[done[0]]] = ray.get(done[0])
+                yield results[pending[done[0]]]
+
+        for _ in shown.bar(finished(), total=len(videos), desc=f"{'+'.join(steps)} on {len(videos)} videos",
+                           unit="video"):
+            pass
+    except BaseException:
+        for ref in list(locals().get("pending", {})):
+            ray.cancel(ref, force=True)
+        raise
+    finally:
+        ray.shutdown()
+    result = BatchResult(folder, results, time.perf_counter() - start)
+    _write_summary(folder, result)
+    return result
