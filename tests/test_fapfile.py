@@ -62,6 +62,7 @@ def test_xface_file_round_trips(tmp_path):
 
 
 MASK = " ".join(["0", "0", "1"] + ["0"] * 65)
+VISEME_ONLY = " ".join(["1"] + ["0"] * 67)
 
 
 @pytest.mark.parametrize("text, match", [
@@ -73,6 +74,13 @@ MASK = " ".join(["0", "0", "1"] + ["0"] * 65)
     (f"2.1 a 25 2\n{MASK}\n3 1\n{MASK}\n2 1\n", r"a.fap:5: frame number 2 comes after frame 3"),
     ("2.1 a\n", r"a.fap:1: header must be"),
     ("", r"a.fap: is empty"),
+    (f"2.1 a 25 1\n{MASK}\n1e30 5\n", r"a.fap:3: frame number 1e30 is not a whole number from 0 to 2147483647"),
+    (f"2.1 a 25 1\n{MASK}\n2.5 5\n", r"a.fap:3: frame number 2.5 is not a whole number"),
+    (f"2.1 a 25 1\n{MASK}\n-1 5\n", r"a.fap:3: frame number -1 is not a whole number from 0"),
+    (f"2.1 a 25 1\n{VISEME_ONLY}\n0 1e300 1 0 0\n", r"a.fap:3: FAP 1 field 1e300 is not a whole number"),
+    (f"2.1 a 25 1\n{VISEME_ONLY}\n0 1.5 1 0 0\n", r"a.fap:3: FAP 1 field 1.5 is not a whole number"),
+    ("2.1 a 25 0\n", r"a.fap:1: holds no frames"),
+    ("2.1 a 25 0\n# frames would follow\n", r"a.fap:1: holds no frames"),
 ])
 def test_malformed_fap_names_line(tmp_path, text, match):
     path = tmp_path / "a.fap"

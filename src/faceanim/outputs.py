@@ -113,16 +113,10 @@ def check_output_folder(argument: str, folder) -> Path:
     """``folder`` as a Path, if outputs can be written into it: an existing folder that can be
     written in, or one that can be made (its nearest existing parent is a folder that can be written in)."""
     folder = Path(folder)
-    if folder.exists():
-        if not folder.is_dir():
-            raise InputError(f"{argument} {folder}: exists and is not a folder")
-        if not os.access(folder, os.W_OK | os.X_OK):
-            raise InputError(f"{argument} {folder}: the folder is not writable")
-        _check_creatable(argument, folder, folder)
-        return folder
-    existing = next(p for p in folder.absolute().parents if p.exists())
+    existing = folder if folder.exists() else next(p for p in folder.absolute().parents if p.exists())
     if not existing.is_dir():
-        raise InputError(f"{argument} {folder}: {existing} is not a folder")
+        where = "exists and is not a folder" if existing is folder else f"{existing} is not a folder"
+        raise InputError(f"{argument} {folder}: {where}")
     if not os.access(existing, os.W_OK | os.X_OK):
         raise InputError(f"{argument} {folder}: the folder {existing} is not writable")
     _check_creatable(argument, folder, existing)
