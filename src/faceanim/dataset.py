@@ -48,7 +48,8 @@ class BatchResult:
 
     folder: Path
     videos: list[VideoResult] = field(default_factory=list)
-    seconds: float = 0.0
+    seconds: float = 0.0  # the whole batch, Ray's start and stop included
+    startup: float = 0.0  # of which starting Ray (locally) or joining the cluster
 
     @property
     def failed(self) -> list[VideoResult]:
@@ -211,7 +212,9 @@ def run_batch(inputs, output, *, do=("encode",), target_mesh=None, workers: int 
         if target_mesh is not None and not Path(target_mesh).is_file():
             raise InputError(f"--target {target_mesh}: no such file")
         target = load_target(target_mesh, progress=shown)  # once, shared by every task through Ray's store
+    joining = time.perf_counter()
     ray = _start_ray(workers, address)
+    startup = time.perf_counter() - joining
     try:
         folder.mkdir(parents=True, exist_ok=True)
         task = ray.remote(num_cpus=1, max_retries=0)(process_video)
@@ -236,6 +239,6 @@ def run_batch(inputs, output, *, do=("encode",), target_mesh=None, workers: int 
         raise
     finally:
         ray.shutdown()
-    result = BatchResult(folder, results, time.perf_counter() - start)
+    result = BatchResult(folder, results, time.perf_counter() - start, startup)
     _write_summary(folder, result)
     return result
