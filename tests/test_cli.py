@@ -121,3 +121,17 @@ def test_a_reader_that_leaves_early_ends_the_command_quietly(tmp_path):
     child.stdout.close()  # long before the interpreter has started and imported faceanim
     stderr = child.stderr.read().decode()
     assert child.wait(timeout=60) == 128 + signal.SIGPIPE and "Traceback" not in stderr, stderr
+
+
+@pytest.mark.parametrize("argv, says", [
+    (["express", "--au", "12:1", "--frames", "abc", "-o", "x.glb"],
+     "argument --frames: invalid int value: 'abc' (see faceanim express --help)"),
+    (["decode"], "the following arguments are required: FILE.fap, -o/--output (see faceanim decode --help)"),
+    (["nosuch"], "argument COMMAND: invalid choice: 'nosuch'"),
+])
+def test_a_command_line_mistake_is_one_line_like_any_user_error(capsys, argv, says):
+    """argparse printed its usage block and then the error: 4 to 6 lines."""
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    error = capsys.readouterr().err
+    assert stop.value.code == 2 and error.count("\n") == 1 and error.startswith("faceanim: error: ") and says in error

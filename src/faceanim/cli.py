@@ -40,8 +40,16 @@ def _force_argument(p) -> None:
                         "names that faceanim did not write")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a mistake on the command line said in one line like every other user error
+    (argparse prints its whole usage block first), pointing at the command's ``--help``."""
+
+    def error(self, message):
+        self.exit(2, f"faceanim: error: {message} (see {self.prog} --help)\n")
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="faceanim", description="The motion of a real face onto any 3D face.")
+    parser = _Parser(prog="faceanim", description="The motion of a real face onto any 3D face.")
     from . import __version__
 
     parser.add_argument("--version", action="version", version=f"faceanim {__version__}")
