@@ -57,3 +57,21 @@ def test_blender_opens_the_demo_avatar_with_its_animation(demo, tmp_path):
     assert obj["textured"] and obj["animated_keys"] == len(obj["shape_keys"]) - 1 > 0
     start, end = obj["frame_range"]
     assert end - start == pytest.approx((len(scripted_stream()) - 1) / FPS * 24, abs=1.0)
+
+
+@pytest.mark.parametrize("stop", [KeyboardInterrupt, RuntimeError])
+def test_a_demo_stopped_in_its_first_step_leaves_no_folder_it_made(tmp_path, monkeypatch, stop):
+    """An interrupt (or a failure) before the first output is in place used to leave an empty folder."""
+    import faceanim.demo as demo
+
+    def halt(*_):
+        raise stop("stopped while making the avatar")
+
+    monkeypatch.setattr(demo, "face_crop", halt)
+    with pytest.raises(stop):
+        run_demo(tmp_path / "new" / "demo")
+    assert not (tmp_path / "new" / "demo").exists()
+    (tmp_path / "mine").mkdir()  # a folder the user made stays, empty as it was
+    with pytest.raises(stop):
+        run_demo(tmp_path / "mine")
+    assert (tmp_path / "mine").is_dir()

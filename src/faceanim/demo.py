@@ -75,18 +75,38 @@ def run_demo(folder, *, progress=None) -> DemoResult:
 
     Each step's outputs appear together when the step ends (see :func:`~faceanim.atomic.output_group`):
     the performance video, then the capture's glTF, FAPs and preview, then the report."""
+    from .outputs import check_output_folder, check_outputs
+
+    folder = check_output_folder("-o", folder)
+    with _made_for(folder):
+        result = DemoResult(folder, {name: folder / name for name in
+                                     ("demo.glb", "preview.mp4", "demo.fap", "performance.mp4", "report.html")})
+        for path in result.outputs.values():
+            check_outputs({"-o": (path, path.suffix)})
+        return _run_steps(result, progress)
+
+
+@contextlib.contextmanager
+def _made_for(folder: Path):
+    """``folder`` made for the demo if missing, and removed again if the demo stops before putting
+    anything in it (an error or Ctrl-C in its first step)."""
+    made = not folder.exists()
+    folder.mkdir(parents=True, exist_ok=True)
+    try:
+        yield
+    except BaseException:
+        if made and not any(folder.iterdir()):
+            folder.rmdir()
+        raise
+
+
+def _run_steps(result: DemoResult, progress) -> DemoResult:
+    """The demo's steps, each putting its outputs in place as it ends (see :func:`run_demo`)."""
     from . import pipeline, portrait
     from .atomic import output_group
-    from .outputs import check_output_folder, check_outputs
     from .progress import as_progress
     from .render.video import video_writer
 
-    folder = check_output_folder("-o", folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    result = DemoResult(folder, {name: folder / name for name in
-                                 ("demo.glb", "preview.mp4", "demo.fap", "performance.mp4", "report.html")})
-    for path in result.outputs.values():
-        check_outputs({"-o": (path, path.suffix)})
     shown = as_progress(progress)
     shown.status("making the avatar of the astronaut portrait")
     with _timed(result.steps, "the avatar: astronaut portrait tracked, face mesh built and textured"):
