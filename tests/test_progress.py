@@ -7,7 +7,7 @@ import pytest
 
 from faceanim import pipeline
 from faceanim.cli import main
-from faceanim.progress import QUIET, Progress, as_progress
+from faceanim.progress import QUIET, Interrupted, Progress, Quiet, as_progress
 
 
 def test_a_step_is_one_line():
@@ -52,3 +52,20 @@ def test_the_command_shows_each_long_step_on_a_terminal_only(tmp_path, capsys, m
     assert f"faceanim: writing {tmp_path / 'b.glb'} with" in err
     pipeline.express(tmp_path / "c.glb", au="12:1.0", frames=3)  # the library job stays quiet
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("progress", [Quiet, lambda **kw: Progress(io.StringIO(), bars=False, **kw)])
+def test_a_frame_loop_stops_at_the_next_frame_once_an_interrupt_was_received(progress):
+    """The command line raises an interrupt where it lands; a library catching BaseException can swallow
+    it (trimesh's optional imports do), and the job used to run to its end. The loops now stop."""
+    import signal
+
+    received = []
+    seen = []
+    with pytest.raises(Interrupted) as stop:
+        for i in progress(interrupts=received).bar(range(10), total=10, desc="deforming"):
+            seen.append(i)
+            if i == 3:
+                received.append(signal.SIGTERM)  # what the handler records before raising
+    assert seen == [0, 1, 2, 3] and stop.value.signum == signal.SIGTERM
+    assert list(Progress(io.StringIO(), bars=False).bar(range(3), total=3, desc="x")) == [0, 1, 2]  # unwatched

@@ -215,23 +215,26 @@ def main(argv=None) -> int:
     """
     args = _parser().parse_args(argv)
     from .atomic import output_group
-    from .progress import QUIET, Progress
+    from .progress import Interrupted, Progress, Quiet
 
+    received: list[int] = []  # the signals the job was sent; its frame loops stop on the first
     # Long steps shown on stderr when it is a terminal (as git does): a bar per frame loop, a line per step;
     # off a terminal (a pipe, a log, a test), only the result and the errors.
-    progress = Progress() if sys.stderr.isatty() else QUIET
+    shown = sys.stderr.isatty()
+    progress = Progress(interrupts=received) if shown else Quiet(interrupts=received)
 
     warnings.formatwarning = lambda message, *_, **__: f"faceanim: warning: {message}\n"
 
     try:
-        with _interrupts_raised() as received, output_group():
+        with _interrupts_raised(received), output_group():
             said = _run(args, progress)
             if received and args.command != "view":  # the viewer stops on an interrupt by design (exit 0)
                 # The interrupt was raised but swallowed on the way (trimesh's optional imports catch
-                # BaseException): the job still ends interrupted, its outputs unmade.
-                raise _Interrupted(received[0])
+                # BaseException) and no frame loop came after: the job still ends interrupted, its
+                # outputs unmade.
+                raise Interrupted(received[0])
     except KeyboardInterrupt as exc:  # the group has removed the temporary files and the finished outputs
-        print(("\n" if progress is not QUIET else "") + "faceanim: interrupted", file=sys.stderr)
+        print(("\n" if shown else "") + "faceanim: interrupted", file=sys.stderr)
         return 128 + getattr(exc, "signum", signal.SIGINT)
     except (InputError, OSError) as exc:
         print(f"faceanim: error: {exc}", file=sys.stderr)
@@ -248,27 +251,22 @@ def main(argv=None) -> int:
     return 0
 
 
-class _Interrupted(KeyboardInterrupt):
-    """SIGINT or SIGTERM, raised where the main thread is, so every ``finally`` on the way out runs."""
-
-    def __init__(self, signum: int):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = int(signum)
-
-
 _SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 @contextlib.contextmanager
-def _interrupts_raised():
-    """SIGINT and SIGTERM raise :class:`_Interrupted` inside the block (the handlers before it are
-    restored after). A signal ignored when faceanim started (SIGINT in a shell's background job) stays
-    ignored; off the main thread, where handlers cannot be set, nothing changes.
+def _interrupts_raised(received: list):
+    """SIGINT and SIGTERM raise :class:`~faceanim.progress.Interrupted` inside the block (the handlers
+    before it are restored after). A signal ignored when faceanim started (SIGINT in a shell's background
+    job) stays ignored; off the main thread, where handlers cannot be set, nothing changes.
 
-    Yields the list of the signals received (the first one only: the handler then ignores both, so a
+    Each signal is added to ``received`` (the first one only: the handler then ignores both, so a
     second Ctrl-C does not cut the clean-up short). A library that catches ``BaseException`` can swallow
-    the raised interrupt and let the job run on; the list lets the caller end it as interrupted anyway."""
-    received: list[int] = []
+    the raised interrupt and let the job run on; the frame loops read ``received`` (through the job's
+    :class:`~faceanim.progress.Progress`) and stop at the next frame, and the caller ends the job as
+    interrupted anyway."""
+    from .progress import Interrupted
+
     if threading.current_thread() is not threading.main_thread():
         yield received
         return
@@ -277,7 +275,7 @@ def _interrupts_raised():
         for number in _SIGNALS:
             signal.signal(number, signal.SIG_IGN)
         received.append(signum)
-        raise _Interrupted(signum)
+        raise Interrupted(signum)
 
     before = {number: signal.getsignal(number) for number in _SIGNALS}
     for number, handler in before.items():

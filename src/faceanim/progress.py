@@ -24,7 +24,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Iterable
 
-__all__ = ["Progress", "QUIET", "as_progress"]
+__all__ = ["Progress", "Quiet", "QUIET", "Interrupted", "as_progress"]
 
 
 class Progress:
@@ -38,9 +38,10 @@ class Progress:
         Draw tqdm bars for per-frame loops; by default only when ``stream`` is a terminal.
     """
 
-    def __init__(self, stream=None, *, bars: bool | None = None):
+    def __init__(self, stream=None, *, bars: bool | None = None, interrupts: list | None = None):
         self._stream = stream
         self._bars = bars
+        self._interrupts = interrupts
 
     @property
     def stream(self):
@@ -61,22 +62,49 @@ class Progress:
             except ImportError:  # tqdm comes with the capture extra; without it, a line will do
                 pass
             else:
-                return tqdm(iterable, total=total, desc=desc, unit=unit, file=self.stream)
+                return self._watched(tqdm(iterable, total=total, desc=desc, unit=unit, file=self.stream))
         self.status(f"{desc} ({total} {unit}s)" if total else desc)
-        return iterable
+        return self._watched(iterable)
+
+    def _watched(self, iterable: Iterable) -> Iterable:
+        """``iterable``, stopped by :class:`Interrupted` at the next item once ``interrupts`` (the list
+        the command line adds each SIGINT or SIGTERM to) holds one. The command line raises the
+        interrupt where it lands, but a library that catches ``BaseException`` can swallow it (trimesh's
+        optional imports do); the frame loops then end the job at the next frame instead of at its end."""
+        if self._interrupts is None:
+            return iterable
+        return self._checked(iterable)
+
+    def _checked(self, iterable: Iterable):
+        for item in iterable:
+            if self._interrupts:
+                raise Interrupted(self._interrupts[0])
+            yield item
 
 
-class _Quiet(Progress):
-    """Shows nothing: what a job uses when it is given no :class:`Progress`."""
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM received by the command line, raised where the work is, so every ``finally`` on
+    the way out runs (``signum``: the signal)."""
+
+    def __init__(self, signum: int):
+        import signal
+
+        super().__init__(signal.Signals(signum).name)
+        self.signum = int(signum)
+
+
+class Quiet(Progress):
+    """Shows nothing: what a job uses when it is given no :class:`Progress` (``interrupts``: see
+    :meth:`Progress._watched`)."""
 
     def status(self, what: str) -> None:
         pass
 
     def bar(self, iterable: Iterable, *, total: int | None = None, desc: str, unit: str = "frame") -> Iterable:
-        return iterable
+        return self._watched(iterable)
 
 
-QUIET = _Quiet()
+QUIET = Quiet()
 
 
 def as_progress(progress) -> Progress:
