@@ -1,5 +1,6 @@
 import numpy as np
 import pytest
+from conftest import grid_mesh
 
 from faceanim.errors import InputError
 from faceanim.geometry import Mesh, RbfWarp
@@ -12,15 +13,9 @@ from faceanim.retarget.correspondence import clear_cache, register_faces
 
 def dome(n=24):
     """A smooth open cap (a quarter of a sphere), ``n x n`` vertices, 1 unit across."""
-    u, v = np.meshgrid(np.linspace(-0.6, 0.6, n), np.linspace(-0.6, 0.6, n))
-    z = np.sqrt(2.0 - u ** 2 - v ** 2) - 1.0
-    verts = np.stack([u, v, z], -1).reshape(-1, 3)
-    tris = []
-    for i in range(n - 1):
-        for j in range(n - 1):
-            a = i * n + j
-            tris += [(a, a + 1, a + n + 1), (a, a + n + 1, a + n)]
-    return Mesh(verts, np.array(tris))
+    grid = grid_mesh(n, size=1.2)
+    u, v = grid.vertices[:, 0] - 0.6, grid.vertices[:, 1] - 0.6
+    return Mesh(np.column_stack([u, v, np.sqrt(2.0 - u ** 2 - v ** 2) - 1.0]), grid.triangles)
 
 
 def bend(points):
