@@ -1,6 +1,9 @@
 """`faceanim view`: the server answers only its own routes, bad inputs are refused before it starts, and,
 in a real headless Chromium (skipped where absent), the page plays the face, keeps the video in step and
-mixes action units with sliders. Screenshots go to a temporary folder that the test output names.
+mixes action units with sliders; at 1280 x 800 the face and its video both lie inside the window, each
+group of FAP curves has its own chart with tick labels, a unit and its "N most active of M" note, a still
+model shows no play controls and its AU sliders start from its recipe and adjust it. Screenshots go to a
+temporary folder that the test output names.
 
 The server's HTTP (issue 20): the Range parser is checked with Hypothesis over 10,000 headers (every one
 gets a range inside the body, a 416 or the whole body; nothing else, no exception), and a running server
@@ -28,6 +31,8 @@ from faceanim import pipeline, portrait
 from faceanim.cli import main
 from faceanim.errors import InputError
 from faceanim.export import MorphSet, morphs_from_animation, write_glb
+from faceanim.export.plots import GROUPS, MOST_ACTIVE, curve_panels
+from faceanim.mpeg4 import fap_table
 from faceanim.mpeg4.fapfile import read_fap
 from faceanim.mpeg4.fapstream import FapStream
 from faceanim.retarget.decode import animate_faps
@@ -339,25 +344,48 @@ def test_view_refuses_bad_inputs_before_serving(tmp_path, grid_glb, capsys):
             pipeline.view(grid_glb, port=busy.port)
 
 
-def test_fap_curves_carry_the_active_faps():
-    stream = read_fap(shared("xface", "Faps", "joy.fap"))
-    curves = fap_curves(stream)
+def test_fap_curves_are_grouped_as_the_plot_groups_them_in_fapu_and_degrees():
+    path = shared("xface", "Faps", "joy.fap")
+    stream = read_fap(path)
+    curves = fap_curves(stream, name=path.name)
+    assert curves["title"] == "FAP curves of joy.fap" and curves["fps"] == stream.fps
+    assert curves["times"] == pytest.approx(np.arange(len(stream)) / stream.fps)
+    groups = curves["groups"]
+    assert [g["name"] for g in groups] == [p.name for p in curve_panels(path)[2]]  # the plot's panels, in order
+    assert [g["name"] for g in groups] == sorted((g["name"] for g in groups), key=GROUPS.index)
+    table = fap_table()
+    by_name = {c["label"].split(" (")[0]: (g, c) for g in groups for c in g["curves"]}
     active = [j for j in range(2, 68) if stream.mask[:, j].any()]  # written out, not curve_columns
-    assert len(curves["names"]) == len(active) and curves["fps"] == stream.fps
-    assert curves["values"][0] == pytest.approx(np.where(stream.mask[:, active[0]], stream.values[:, active[0]], 0))
+    assert sorted(by_name) == sorted(table.names[j] for j in active)  # every active FAP once
+    for j in active:
+        group, curve = by_name[table.names[j]]
+        raw = np.where(stream.mask[:, j], stream.values[:, j], np.nan)
+        want = np.degrees(raw * 1e-5) if table.units[j] == "AU" else raw / 1024  # FAP angle units: 1e-5 rad
+        got = np.array([np.nan if v is None else v for v in curve["values"]])
+        np.testing.assert_allclose(got, want, atol=6e-5)  # rounded to 4 decimals, gaps kept as null
+        assert group["unit"] == "degrees" if table.units[j] == "AU" else f"{table.units[j]}0" in group["unit"]
+    assert by_name["open_jaw"][0]["name"] == "jaw" and by_name["yaw_l_eyeball"][0]["name"] == "eyes"
+    for group in groups:
+        count = len(group["curves"])
+        assert [c["named"] for c in group["curves"]] == [i < MOST_ACTIVE for i in range(count)]
+        spans = [np.ptp([v for v in c["values"] if v is not None]) for c in group["curves"]]
+        assert spans == sorted(spans, reverse=True)  # most active first
+        assert group["note"] == (f"{MOST_ACTIVE} most active of {count}" if count > MOST_ACTIVE else f"{count} curves")
+    assert any("most active of" in g["note"] for g in groups)  # joy moves 22 lip FAPs
+    json.dumps(curves, allow_nan=False)  # plain JSON: no NaN
 
 
 # ---- in a real browser
 
 
-def browser_check(url: str, out: Path, unit: str | None = None) -> dict:
-    script = ROOT / "tools" / "browser_check.js"
+def browser_check(url: str, out: Path, unit: str | None = None, *, script: str = "browser_check.js") -> dict:
+    """Run ``tools/<script>`` on the page at ``url`` (it writes screenshots and report.json into ``out``)."""
     if shutil.which("chromium") is None or shutil.which("node") is None:
         pytest.skip("needs Debian's chromium and Node.js (scripts/setup.sh installs them)")
     if not (ROOT / "tools" / "node" / "node_modules" / "playwright-core").exists():
         pytest.skip("needs playwright-core in tools/node (scripts/setup.sh installs it)")
-    run = subprocess.run(["node", str(script), url, str(out)] + ([unit] if unit else []), capture_output=True,
-                         text=True, timeout=240)
+    run = subprocess.run(["node", str(ROOT / "tools" / script), url, str(out)] + ([unit] if unit else []),
+                         capture_output=True, text=True, timeout=240)
     assert run.returncode == 0, run.stderr[-3000:]
     print(f"screenshots in {out}")
     return json.loads((out / "report.json").read_text())
@@ -408,3 +436,71 @@ def test_au_sliders_change_the_face_and_save_a_recipe_and_fap(tmp_path_factory):
     (out / "mix.fap").write_text(report["fap"])
     mixed = read_fap(out / "mix.fap")
     assert mixed.values[0, 11] == 300 and mixed.values[0, 5] == 80 and not mixed.mask[0, 2]
+
+
+def inside(rect: dict | None, viewport: dict) -> bool:
+    return rect is not None and rect["left"] >= 0 and rect["top"] >= 0 and rect["right"] <= viewport["width"] \
+        and rect["bottom"] <= viewport["height"]
+
+
+def test_at_1280x800_face_and_video_sit_side_by_side_and_every_curve_group_has_ticks(tmp_path_factory):
+    out = tmp_path_factory.mktemp("viewer_layout")
+    target = portrait.avatar_target()
+    fap = shared("xface", "Faps", "joy.fap")
+    glb = out / "joy.glb"
+    write_glb(glb, target.mesh, morphs_from_animation(animate_faps(read_fap(fap), target)))
+    with pipeline.view(glb, video=shared("videos", "d0.mp4"), fap=fap, port=0).start() as server:
+        report = browser_check(server.url, out, script="browser_layout.js")
+    assert report["console_errors"] == [] and report["page_errors"] == []
+    viewport = report["viewport"]
+    assert viewport == {"width": 1280, "height": 800}
+    face, video = report["face"], report["video"]
+    assert inside(face, viewport) and inside(video, viewport), (face, video)  # both whole, in the window
+    assert face["right"] <= video["left"] and abs(face["top"] - video["top"]) < 2  # side by side
+    assert min(face["right"] - face["left"], video["right"] - video["left"]) >= 500  # and not made tiny
+    assert inside(report["transport"], viewport)  # the play controls too
+    charts = report["charts"]
+    assert [c["name"] for c in charts] == [g["name"] for g in fap_curves(read_fap(fap))["groups"]]
+    assert {"jaw", "lips", "eyes", "head"} <= {c["name"] for c in charts}
+    for chart in charts:  # each group on its own scale, with ticks and its unit
+        assert len(chart["y_ticks"]) >= 2 and len(chart["x_ticks"]) >= 2, chart
+        assert all(t.endswith(" s") for t in chart["x_ticks"]) and chart["unit"], chart
+    eyes, jaw = (next(c for c in charts if c["name"] == name) for name in ("eyes", "jaw"))
+    assert eyes["unit"] == "degrees" and jaw["unit"].startswith("x MNS0")
+    assert max(abs(float(t)) for t in jaw["y_ticks"]) < 1  # open_jaw's own scale, not the eyes'
+    assert report["notes_visible"] == [True] * len(charts)
+    assert "6 most active of 22" in [c["note"] for c in charts]  # lips
+
+
+def test_a_still_expression_has_no_play_controls_and_its_sliders_start_from_its_recipe(tmp_path_factory):
+    out = tmp_path_factory.mktemp("viewer_recipe")
+    target = portrait.avatar_target()
+    table = {"AU12": {12: 300, 13: 300, 6: 80, 7: 80}, "AU26": {3: 500}, "AU4": {31: -150, 32: -150}}
+    shapes = {}
+    for name, faps in table.items():
+        values, mask = np.zeros((1, 68)), np.zeros((1, 68), bool)
+        for fap, value in faps.items():
+            values[0, fap - 1], mask[0, fap - 1] = value, True
+        shapes[name] = animate_faps(FapStream(values, mask, 25.0), target).positions[0] - target.mesh.vertices
+    made = 0.8 * shapes["AU12"] + 0.5 * shapes["AU26"]  # as faceanim express writes a still: the recipe made whole
+    glb = out / "smile.glb"
+    write_glb(glb, target.mesh, MorphSet(np.stack([made, *shapes.values()]), ("expression", *shapes),
+                                         default_weights=np.array([1.0, 0, 0, 0])),
+              extras={"recipe": "12:0.80,26:0.50",
+                      "au_faps": {name: {str(k): v for k, v in faps.items()} for name, faps in table.items()}})
+    with pipeline.view(glb, port=0).start() as server:
+        report = browser_check(server.url, out, script="browser_layout.js")
+    assert report["console_errors"] == [] and report["page_errors"] == []
+    assert report["transport"] is None and report["video"] is None and report["charts"] == []  # nothing plays
+    assert inside(report["face"], report["viewport"])
+    assert report["editor"] and report["units"] == {"AU4": 0, "AU12": 0.8, "AU26": 0.5}  # the recipe's values
+    assert report["recipe"] == "12:0.80,26:0.50"
+    assert report["influences"] == {"expression": 1, "AU12": 0, "AU26": 0, "AU4": 0}  # the face as made
+    # raising AU12 by 0.2 adjusts the recipe: the rest of the expression stays
+    assert report["adjusted_unit"] == "AU12" and report["adjusted"]["recipe"] == "12:1.00,26:0.50"
+    assert report["adjusted"]["influences"] == pytest.approx({"expression": 1, "AU12": 0.2, "AU26": 0, "AU4": 0})
+    assert face_difference(out / "recipe.png", out / "adjusted.png") > 0.05
+    assert face_difference(out / "recipe.png", out / "restored.png") < 0.01  # back at the recipe: the face made
+    # every unit of the recipe at 0: nothing of the expression is left
+    assert report["zeroed"]["recipe"] == ""
+    assert report["zeroed"]["influences"] == pytest.approx({"expression": 0, "AU12": 0, "AU26": 0, "AU4": 0})

@@ -402,5 +402,5 @@ def view(model, *, video=None, fap=None, port: int = 8765):
         with open_frames(video) as frames:
             if next(iter(frames), None) is None:
                 raise InputError(f"{video}: holds no frames")
-    curves = fap_curves(read_fap(fap)) if fap is not None else None
+    curves = fap_curves(read_fap(fap), name=Path(fap).name) if fap is not None else None
     return ViewerServer(ViewerFiles(model, video, curves, title=model.stem), port=int(port))

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import FileFormatError, InputError
 
-__all__ = ["plot", "draw", "Panel", "curve_panels", "GROUPS", "MOST_ACTIVE"]
+__all__ = ["plot", "draw", "Panel", "curve_panels", "fap_panels", "GROUPS", "MOST_ACTIVE"]
 
 GROUPS = ("jaw", "lips", "brows", "lids", "eyes", "cheeks & nose", "head", "other")
 MOST_ACTIVE = 6  # curves named per panel; the rest are drawn grey
@@ -47,6 +47,16 @@ class Panel:
 
     def __repr__(self) -> str:
         return f"Panel({self.name!r}, {self.unit!r}, {len(self.curves)} curves)"
+
+    def ranked(self) -> list[str]:
+        """The curves' labels, most active (widest range) first; the first :data:`MOST_ACTIVE` are named."""
+        return sorted(self.curves, key=lambda k: -_activity(self.curves[k]))
+
+    @property
+    def note(self) -> str:
+        """What the panel shows: ``"6 most active of 22"`` where some curves go unnamed, else ``"3 curves"``."""
+        count = len(self.curves)
+        return f"{MOST_ACTIVE} most active of {count}" if count > MOST_ACTIVE else f"{count} curves"
 
 
 def _panels(named: list[tuple[str, str, str, np.ndarray]]) -> list[Panel]:
@@ -79,6 +89,17 @@ def _fap_panels(values: dict[int, np.ndarray]):
         yield panel
 
 
+def fap_panels(stream) -> tuple[np.ndarray, list[Panel]]:
+    """The curves of a :class:`~faceanim.mpeg4.fapstream.FapStream` as ``(times (T,) in seconds,
+    panels)``: one panel per group (and unit), FAPs in multiples of their FAPU, angles in degrees,
+    frames without a FAP NaN."""
+    from ..mpeg4.fapstream import curve_columns
+
+    frames = stream.frame_numbers if stream.frame_numbers is not None else np.arange(len(stream))
+    values = {j + 1: np.where(stream.mask[:, j], stream.values[:, j], np.nan) for j in curve_columns(stream)}
+    return frames / stream.fps, list(_fap_panels(values))
+
+
 def curve_panels(path) -> tuple[np.ndarray, str, list[Panel]]:
     """Read ``path`` (``.fap``, or a CSV of FAP, AU or blendshape curves) into ``(times (T,) in
     seconds, or frame numbers, the x axis' label, panels)``.
@@ -88,7 +109,6 @@ def curve_panels(path) -> tuple[np.ndarray, str, list[Panel]]:
     InputError
         A missing file, a suffix other than .fap or .csv, or a CSV with no curves faceanim knows.
     """
-    from ..mpeg4.fapstream import curve_columns
     from .curves import read_curve_csv
 
     path = Path(path)
@@ -98,10 +118,8 @@ def curve_panels(path) -> tuple[np.ndarray, str, list[Panel]]:
     if suffix == ".fap":
         from ..mpeg4.fapfile import read_fap
 
-        stream = read_fap(path)
-        frames = stream.frame_numbers if stream.frame_numbers is not None else np.arange(len(stream))
-        values = {j + 1: np.where(stream.mask[:, j], stream.values[:, j], np.nan) for j in curve_columns(stream)}
-        return frames / stream.fps, "time (s)", list(_fap_panels(values))
+        times, panels = fap_panels(read_fap(path))
+        return times, "time (s)", panels
     if suffix != ".csv":
         raise InputError(f"{path}: plot reads a .fap file or a .csv of FAP, AU or blendshape curves")
     header, columns = read_curve_csv(path)
@@ -153,14 +171,13 @@ def draw(x, xlabel: str, panels: list[Panel], *, title: str, figure_class=None):
     axes = figure.subplots(len(panels), 1, sharex=True, squeeze=False)[:, 0]
     figure.suptitle(title, fontsize=12)
     for ax, panel in zip(axes, panels, strict=True):
-        ranked = sorted(panel.curves, key=lambda k: -_activity(panel.curves[k]))
+        ranked = panel.ranked()
         named, rest = ranked[:MOST_ACTIVE], ranked[MOST_ACTIVE:]
         for label in rest:
             ax.plot(x, panel.curves[label], color="0.75", linewidth=0.7)
         for label in named:
             ax.plot(x, panel.curves[label], linewidth=1.4, label=label)
-        shown = f"{len(named)} most active of {len(ranked)}" if rest else f"{len(ranked)} curves"
-        ax.set_title(f"{panel.name}: {shown}", loc="left", fontsize=10)
+        ax.set_title(f"{panel.name}: {panel.note}", loc="left", fontsize=10)
         ax.set_ylabel(panel.unit, fontsize=9)
         ax.grid(True, color="0.9", linewidth=0.6)
         ax.tick_params(labelsize=8, labelbottom=True)

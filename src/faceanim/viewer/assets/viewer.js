@@ -1,12 +1,13 @@
-// faceanim viewer: the animated face (three.js), its source video in step, FAP curves with a cursor,
-// and, for a model with action-unit morph targets, sliders that mix an expression by hand.
+// faceanim viewer: the animated face (three.js), its source video in step, FAP curves with a cursor
+// (one chart per group of the face, each on its own scale), and, for a model with action-unit morph
+// targets, sliders that start from the model's AU recipe and adjust it.
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 
 const $ = (id) => document.getElementById(id);
 const AU_NAME = /^AU(\d+)([LR]?)$/i;
-const MAX_CURVES = 12;
+const SVG = 'http://www.w3.org/2000/svg';
 const SYNC_TOLERANCE = 0.12; // seconds the video may drift from the face before it is re-seated
 
 // The page's state, open to scripts (the browser tests drive it through these).
@@ -55,6 +56,10 @@ async function main() {
   const video = config.video ? setUpVideo(config.video) : null;
   const curves = config.curves ? await setUpCurves(config.curves) : null;
   if (face) setUpEditor(face);
+  // Play controls only where something plays: an animation or a video.
+  $('transport').hidden = !clip && !video;
+  $('face-caption').textContent = clip ? 'animated face (drag to turn)' : 'still face (drag to turn)';
+  if (!clip && !video) viewer.playing = false;
 
   const scrub = $('scrub');
   scrub.addEventListener('input', () => seek((scrub.value / 1000) * viewer.duration));
@@ -109,26 +114,49 @@ async function main() {
     return element;
   }
 
+  // The sliders start from the model's recipe (a `faceanim express` .glb carries it in its extras, with
+  // the recipe made whole as the morph target "expression") and adjust it. The made expression is not
+  // the plain sum of its units' morphs (the muscles interact), so the face is mixed as
+  //   a * expression + sum over units of (slider - a * recipe) * unit,
+  // where a, the share of the recipe still in place (each recipe unit's slider over its recipe value, at
+  // most 1, averaged), is 1 at the recipe, so the face is exactly the one made, and 0 with every recipe
+  // unit at 0, so the face is the units alone (the rest face with all at 0). A model without a recipe
+  // starts every slider at 0 and mixes the units alone.
   function setUpEditor(mesh) {
     const units = Object.entries(mesh.morphTargetDictionary).filter(([name]) => AU_NAME.test(name));
     if (!units.length) return;
     $('editor').hidden = false;
-    const table = (mesh.userData.faceanim || {}).au_faps || null;
-    const weights = {};
+    const extras = mesh.userData.faceanim || {};
+    const table = extras.au_faps || null;
+    const start = parseRecipe(extras.recipe || '');
+    const weights = { ...start }; // every unit of the recipe, with a slider or not
+    if (Object.keys(start).length) {
+      $('editor-help').textContent = `(they start from the model's recipe ${recipe(start)} and adjust it)`;
+      $('recipe').textContent = recipe(weights);
+    }
+    const expression = mesh.morphTargetDictionary.expression;
+    const inRecipe = Object.keys(start).filter((k) => start[k] > 0);
+    function mix() {
+      const share = inRecipe.length ? inRecipe.reduce((sum, k) => sum + Math.min(1, (weights[k] || 0) / start[k]), 0)
+        / inRecipe.length : 1;
+      if (expression !== undefined && inRecipe.length) mesh.morphTargetInfluences[expression] = share;
+      for (const [name, index] of units) mesh.morphTargetInfluences[index] = (weights[name] || 0) - share * (start[name] || 0);
+    }
     const sliders = $('sliders');
-    for (const [name, index] of units.sort((a, b) => auNumber(a[0]) - auNumber(b[0]))) {
+    for (const [name] of units.sort((a, b) => auNumber(a[0]) - auNumber(b[0]))) {
+      const value = start[name] || 0;
       const label = document.createElement('label');
-      label.innerHTML = `<span>${name}</span><input type="range" min="0" max="2" step="0.01" value="0"
-        data-unit="${name}"><output>0.00</output>`;
+      label.classList.toggle('in-recipe', name in start);
+      label.innerHTML = `<span>${name}</span><input type="range" min="0" max="2" step="0.01" value="${value}"
+        data-unit="${name}"><output>${value.toFixed(2)}</output>`;
       const input = label.querySelector('input');
       input.addEventListener('input', () => {
-        if (!viewer.editing) { // leave the animation: every morph starts from rest
+        if (!viewer.editing) { // leave the animation, keeping the expression shown; the units adjust it
           pause();
           viewer.editing = true;
-          mesh.morphTargetInfluences.fill(0);
         }
         weights[name] = Number(input.value);
-        mesh.morphTargetInfluences[index] = weights[name];
+        mix();
         label.querySelector('output').textContent = weights[name].toFixed(2);
         $('recipe').textContent = recipe(weights);
         apply();
@@ -147,47 +175,88 @@ async function main() {
       input.value = value;
       input.dispatchEvent(new Event('input'));
     };
+    viewer.units = () => Object.fromEntries([...sliders.querySelectorAll('input')].map(
+      (i) => [i.dataset.unit, Number(i.value)]));
+    viewer.influences = () => Object.fromEntries(Object.entries(mesh.morphTargetDictionary).map(
+      ([name, index]) => [name, mesh.morphTargetInfluences[index]]));
     viewer.recipe = () => recipe(weights);
     viewer.fap = () => fapFile(weights, table);
   }
 
+  // One chart per group of FAPs (jaw, lips, ...; grouped and ranked by faceanim.viewer.fap_curves), each
+  // on its own y scale with ticks and its unit, over a shared time axis, and a cursor at the face's time.
   async function setUpCurves(url) {
-    let data = await (await fetch(url)).json();
+    const data = await (await fetch(url)).json();
     $('curves-box').hidden = false;
     $('curves-title').textContent = data.title;
-    const canvas = $('curves');
-    const context = canvas.getContext('2d');
-    const background = document.createElement('canvas');
-    background.width = canvas.width;
-    background.height = canvas.height;
-    const g = background.getContext('2d');
-    // The most active curves only, so the plot stays readable (the title says how many are shown).
-    const ranked = data.values.map((c, i) => [Math.max(0, ...c.map(Math.abs)), i]).sort((a, b) => b[0] - a[0]);
-    const shown = ranked.slice(0, MAX_CURVES).map(([, i]) => i).sort((a, b) => a - b);
-    data = { ...data, names: shown.map((i) => data.names[i]), values: shown.map((i) => data.values[i]),
-      title: `${data.title || 'curves'}${shown.length < ranked.length ? `: the ${shown.length} most active of ${ranked.length}` : ''}` };
-    const frames = data.values.length ? data.values[0].length : 0;
-    const span = Math.max(1e-9, ...data.values.flat().map(Math.abs));
-    const duration = frames / data.fps;
-    const x = (t) => (t / Math.max(duration, viewer.duration, 1e-9)) * canvas.width;
-    const y = (v) => canvas.height / 2 - (v / span) * (canvas.height / 2 - 14);
-    g.fillStyle = '#fff';
-    g.fillRect(0, 0, canvas.width, canvas.height);
-    g.strokeStyle = '#ddd';
-    g.beginPath(); g.moveTo(0, y(0)); g.lineTo(canvas.width, y(0)); g.stroke();
-    data.values.forEach((curve, i) => {
-      g.strokeStyle = `hsl(${(i * 137.5) % 360} 65% 42%)`;
-      g.beginPath();
-      curve.forEach((v, f) => (f ? g.lineTo(x(f / data.fps), y(v)) : g.moveTo(x(0), y(v))));
-      g.stroke();
-      g.fillStyle = g.strokeStyle;
-      g.fillText(data.names[i], 6 + (i % 6) * 200, 12 + Math.floor(i / 6) * 12);
-    });
+    const end = Math.max(data.times.length ? data.times[data.times.length - 1] : 0, viewer.duration, 1e-9);
+    const charts = data.groups.map((group) => chart(group, data.times, end));
     return {
-      draw(t) {
-        context.drawImage(background, 0, 0);
-        context.strokeStyle = '#d22';
-        context.beginPath(); context.moveTo(x(t), 0); context.lineTo(x(t), canvas.height); context.stroke();
+      draw(t) { for (const c of charts) c.cursor(t); },
+    };
+  }
+
+  function chart(group, times, end) {
+    const [W, H] = [600, 150];
+    const pad = { left: 52, right: 10, top: 8, bottom: 22 };
+    const box = document.createElement('figure');
+    box.className = 'chart';
+    box.dataset.group = group.name;
+    box.innerHTML = `<figcaption><b></b><span class="unit"></span><span class="note"></span></figcaption>`;
+    box.querySelector('b').textContent = group.name;
+    box.querySelector('.unit').textContent = group.unit;
+    box.querySelector('.note').textContent = group.note;
+    const svg = element('svg', { viewBox: `0 0 ${W} ${H}`, role: 'img', 'aria-label': `${group.name} curves` });
+    box.appendChild(svg);
+    const values = group.curves.flatMap((c) => c.values).filter((v) => v !== null);
+    let [lo, hi] = [Math.min(0, ...values), Math.max(0, ...values)];
+    if (hi - lo < 1e-9) [lo, hi] = [lo - 1, hi + 1];
+    const yTicks = niceTicks(lo, hi, 4);
+    [lo, hi] = [Math.min(lo, yTicks[0]), Math.max(hi, yTicks[yTicks.length - 1])];
+    const x = (t) => pad.left + (t / end) * (W - pad.left - pad.right);
+    const y = (v) => H - pad.bottom - ((v - lo) / (hi - lo)) * (H - pad.top - pad.bottom);
+    for (const v of yTicks) {
+      svg.appendChild(element('line', { class: 'grid', x1: pad.left, x2: W - pad.right, y1: y(v), y2: y(v) }));
+      const label = element('text', { class: 'tick y', x: pad.left - 4, y: y(v) + 4, 'text-anchor': 'end' });
+      label.textContent = tickText(v, yTicks);
+      svg.appendChild(label);
+    }
+    const xTicks = niceTicks(0, end, 6).filter((t) => t <= end + 1e-9);
+    for (const t of xTicks) {
+      svg.appendChild(element('line', { class: 'axis', x1: x(t), x2: x(t), y1: H - pad.bottom, y2: H - pad.bottom + 4 }));
+      const label = element('text', { class: 'tick x', x: x(t), y: H - 6, 'text-anchor': 'middle' });
+      label.textContent = `${tickText(t, xTicks)} s`;
+      svg.appendChild(label);
+    }
+    svg.appendChild(element('line', { class: 'axis', x1: pad.left, x2: W - pad.right, y1: H - pad.bottom, y2: H - pad.bottom }));
+    const legend = document.createElement('div');
+    legend.className = 'legend';
+    // The unnamed curves first, thin and grey, so the named ones are drawn over them.
+    const order = [...group.curves.filter((c) => !c.named), ...group.curves.filter((c) => c.named)];
+    order.forEach((curve) => {
+      const colour = curve.named ? `hsl(${(group.curves.indexOf(curve) * 137.5 + 210) % 360} 65% 40%)` : '#c4c4c4';
+      let d = '';
+      curve.values.forEach((v, f) => {
+        if (v === null) return;
+        d += `${d && curve.values[f - 1] !== null ? 'L' : 'M'}${x(times[f]).toFixed(1)},${y(v).toFixed(1)}`;
+      });
+      svg.appendChild(element('path', { d, fill: 'none', stroke: colour, 'stroke-width': curve.named ? 1.5 : 0.8 }));
+      if (curve.named) {
+        const item = document.createElement('span');
+        item.style.color = colour;
+        item.textContent = curve.label;
+        legend.appendChild(item);
+      }
+    });
+    const cursor = element('line', { class: 'cursor', y1: pad.top, y2: H - pad.bottom, x1: x(0), x2: x(0) });
+    svg.appendChild(cursor);
+    box.appendChild(legend);
+    $('charts').appendChild(box);
+    let shown = null;
+    return {
+      cursor(t) {
+        const at = x(Math.min(t, end)).toFixed(1);
+        if (at !== shown) { cursor.setAttribute('x1', at); cursor.setAttribute('x2', at); shown = at; }
       },
     };
   }
@@ -209,6 +278,41 @@ function frame(object) {
 }
 
 function auNumber(name) { return Number(AU_NAME.exec(name)[1]); }
+
+// A recipe as faceanim writes it ("6:0.80,12:1.00") as {AU6: 0.8, AU12: 1.0}; a code repeated adds up.
+function parseRecipe(text) {
+  const weights = {};
+  for (const part of String(text).split(',')) {
+    const [code, value] = part.split(':').map((s) => s.trim());
+    const name = `AU${code.replace(/^AU/i, '').replace(/^0+(?=\d)/, '')}`;
+    if (code && AU_NAME.test(name) && Number.isFinite(Number(value))) weights[name] = (weights[name] || 0) + Number(value);
+  }
+  return weights;
+}
+
+function element(tag, attributes) {
+  const node = document.createElementNS(SVG, tag);
+  for (const [k, v] of Object.entries(attributes)) node.setAttribute(k, v);
+  return node;
+}
+
+// About `count` round values (1, 2 or 5 times a power of ten apart) spanning lo..hi.
+function niceTicks(lo, hi, count) {
+  const raw = (hi - lo) / Math.max(1, count);
+  const power = 10 ** Math.floor(Math.log10(raw));
+  const step = [1, 2, 5, 10].map((m) => m * power).find((s) => s >= raw);
+  const ticks = [];
+  for (let v = Math.floor(lo / step) * step; v <= hi + step * 0.5; v += step) {
+    ticks.push(Math.abs(v) < step * 1e-6 ? 0 : v);
+    if (v >= hi) break;
+  }
+  return ticks;
+}
+
+function tickText(v, ticks) {
+  const step = ticks.length > 1 ? Math.abs(ticks[1] - ticks[0]) : 1;
+  return v.toFixed(Math.max(0, Math.min(4, -Math.floor(Math.log10(step) + 1e-9))));
+}
 
 // The recipe as `faceanim express --au` reads it: "6:0.80,12:1.00" (units at 0 left out).
 function recipe(weights) {
