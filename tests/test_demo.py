@@ -1,3 +1,6 @@
+import base64
+import re
+
 import pytest
 from conftest import khronos_report
 
@@ -37,6 +40,8 @@ def test_demo_writes_every_output_and_reads_the_performance_back(demo):
     page = demo.outputs["report.html"].read_text()
     assert "FAPs read back from the video" in page and "faceanim view " in page
     assert page.count('<img src="data:image/jpeg') == len(SCRIPT)
+    curves = re.search(r'<img class="curves" src="data:image/png;base64,([^"]+)"', page)  # faceanim plot's panels
+    assert curves and base64.b64decode(curves.group(1)).startswith(b"\x89PNG")
     for frame, (name, *_) in zip(apex_frames(), SCRIPT, strict=True):  # every still says what it shows
         assert f"<figcaption>frame {frame}: {name}</figcaption>" in page
 

@@ -129,7 +129,8 @@ def _run_steps(result: DemoResult, progress) -> DemoResult:
                 preview=result.outputs["preview.mp4"], fap=result.outputs["demo.fap"], progress=shown)
     result.recovery = fap_recovery(script, recovered)
     stills = _stills(result.outputs["preview.mp4"], apex_frames())
-    _write_report(result, stills, frames=len(animation), vertices=len(target.mesh.vertices))
+    _write_report(result, stills, frames=len(animation), vertices=len(target.mesh.vertices),
+                  curves=_curves_png(recovered))
     return result
 
 
@@ -217,7 +218,25 @@ def view_command(result: DemoResult) -> str:
     return f"faceanim view {o['demo.glb']} --video {o['performance.mp4']} --fap {o['demo.fap']}"
 
 
-def _write_report(result: DemoResult, stills, *, frames: int, vertices: int) -> None:
+def _curves_png(stream) -> str | None:
+    """``stream``'s FAP curves drawn as ``faceanim plot`` draws them (a panel per group, each on its own
+    scale and unit), as a base64 PNG for the report; None without matplotlib (the ``plot`` extra)."""
+    try:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+    except ImportError:
+        return None
+    from .export.plots import draw, fap_panels
+
+    times, panels = fap_panels(stream)
+    figure = draw(times, "time (s)", panels, title="FAPs read back from the performance", figure_class=Figure)
+    FigureCanvasAgg(figure)
+    png = io.BytesIO()
+    figure.savefig(png, format="png", dpi=80)
+    return base64.b64encode(png.getvalue()).decode("ascii")
+
+
+def _write_report(result: DemoResult, stills, *, frames: int, vertices: int, curves: str | None = None) -> None:
     from .atomic import atomic_output
 
     total = sum(seconds for _, seconds in result.steps)
@@ -227,6 +246,9 @@ def _write_report(result: DemoResult, stills, *, frames: int, vertices: int) -> 
     names = dict(zip(apex_frames(), (name for name, *_ in SCRIPT), strict=True))
     pictures = "".join(f'<figure><img src="data:image/jpeg;base64,{data}" alt="frame {i}">'
                        f"<figcaption>frame {i}: {names.get(i, '')}</figcaption></figure>" for i, data in stills)
+    plot = ("<p>(The FAP curves are drawn with matplotlib: <code>pip install 'faceanim[plot]'</code>.)</p>"
+            if curves is None else f'<img class="curves" src="data:image/png;base64,{curves}" '
+                                   'alt="the FAP curves read back, a panel per group">')
     links = " · ".join(f'<a href="{path.name}">{path.name}</a>' for key, path in result.outputs.items()
                        if key != "report.html")
     page = f"""<!doctype html>
@@ -236,7 +258,7 @@ body {{ font: 15px/1.5 system-ui, sans-serif; max-width: 60rem; margin: 2rem aut
 table {{ border-collapse: collapse; margin: 0.5rem 0 1.5rem; }}
 td, th {{ border-bottom: 1px solid #ddd; padding: 0.25rem 0.75rem; text-align: left; }}
 figure {{ display: inline-block; margin: 0 0.5rem 0.5rem 0; }} img {{ width: 28rem; }}
-video {{ width: 100%; max-width: 58rem; }}
+video {{ width: 100%; max-width: 58rem; }} img.curves {{ width: 100%; max-width: 58rem; }}
 </style></head><body>
 <h1>faceanim demo</h1>
 <p>The astronaut portrait that scikit-image ships (Eileen Collins, NASA, public domain) was made into a 3D
@@ -254,6 +276,7 @@ warp), and that video was then tracked, encoded to MPEG-4 FAPs and retargeted on
 <p>The performance's true FAPs are known, so the capture can be scored: correlation over the clip between
 the scripted and the recovered FAP curves, and the gain (recovered / scripted; 1 is exact).</p>
 <table><tr><th>expression</th><th>FAPs</th><th>correlation</th><th>gain</th></tr>{recovery}</table>
+{plot}
 <h2>Stills (source | animated avatar)</h2>
 {pictures}
 </body></html>
