@@ -188,7 +188,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("inputs", nargs="+", metavar="INPUTS")
     p.add_argument("-o", "--output", required=True, metavar="OUTDIR")
     p.add_argument("--do", default="encode", metavar="STEPS",
-                   help="comma-separated: encode, aus, animate (default: encode)")
+                   help="comma-separated: encode, aus, animate, plot (the FAPs drawn; with encode) "
+                        "(default: encode)")
     p.add_argument("--target", metavar="MESH", help="the face animate moves (default: the avatar), loaded once")
     p.add_argument("--workers", type=int, metavar="N", help="videos at once on this machine (default: its cores)")
     p.add_argument("--address", metavar="ray://HOST:PORT|auto", help="run on this Ray cluster instead")

@@ -2,7 +2,8 @@
 video, locally (``ray.init(num_cpus=workers)``) or on a cluster (``address``).
 
 Each task tracks its video once and writes the outputs asked for (``encode``: ``NAME.fap``, ``aus``:
-``NAME_aus.csv``, ``animate``: ``NAME.glb``), the same files the single commands write, all together
+``NAME_aus.csv``, ``animate``: ``NAME.glb``, ``plot``: ``NAME_curves.png``, the FAPs as ``faceanim plot``
+draws them), the same files the single commands write, all together
 or none (:func:`faceanim.atomic.output_group`). A video that cannot be read or shows no face fails
 alone, with its one-line reason, and the others go on. An output already in the folder is not made
 again (``force`` redoes it), so a re-run after a failure or an interrupt does only what is missing.
@@ -89,6 +90,7 @@ def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool =
     from .atomic import output_group
     from .capture.track import track_video
     from .expressions import aus
+    from .mpeg4.fapfile import read_fap
 
     start = time.perf_counter()
     wanted = outputs_of(video, steps, folder)
@@ -106,8 +108,12 @@ def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool =
                 frames, tracked = len(recorded), float(recorded.valid.mean())
                 recorded.save(track_path)  # encode and aus read the track, not the video again
             with output_group():  # this video's outputs appear together, or none of them
+                stream = None
                 if "encode" in todo:
-                    pipeline.encode(track_path, todo["encode"], neutral=video.neutral, smoothing=video.smoothing)
+                    stream, _ = pipeline.encode(track_path, todo["encode"], neutral=video.neutral,
+                                                smoothing=video.smoothing)
+                if "plot" in todo:
+                    _plot_faps(stream if stream is not None else read_fap(wanted["encode"]), todo["plot"], video)
                 if "aus" in todo:
                     aus(track_path, todo["aus"], neutral=video.neutral, smoothing=video.smoothing)
                 if "animate" in todo:
@@ -123,11 +129,24 @@ def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool =
                        tuple(p.name for p in wanted.values()))
 
 
+def _plot_faps(stream, path: Path, video: Video) -> None:
+    """``video``'s FAP curves as ``faceanim plot`` draws them, into ``path``."""
+    from .atomic import atomic_output
+    from .export.plots import fap_panels, figure_png
+
+    times, panels = fap_panels(stream)
+    png = figure_png(times, "time (s)", panels, title=f"{video.path.name}: FAPs")
+    with atomic_output(path, suffix=".png") as tmp:
+        tmp.write_bytes(png)
+
+
 def _parse_steps(do) -> tuple[str, ...]:
     steps = tuple(s.strip() for s in (do.split(",") if isinstance(do, str) else do) if s.strip())
     unknown = [s for s in steps if s not in STEPS]
     if not steps or unknown:
         raise InputError(f"--do takes {', '.join(STEPS)} (comma-separated), got {','.join(unknown) or 'nothing'}")
+    if "plot" in steps and "encode" not in steps:
+        raise InputError("--do plot draws each video's FAPs: ask for encode too (--do encode,plot)")
     return tuple(dict.fromkeys(steps))
 
 

@@ -221,19 +221,14 @@ def view_command(result: DemoResult) -> str:
 def _curves_png(stream) -> str | None:
     """``stream``'s FAP curves drawn as ``faceanim plot`` draws them (a panel per group, each on its own
     scale and unit), as a base64 PNG for the report; None without matplotlib (the ``plot`` extra)."""
-    try:
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-    except ImportError:
-        return None
-    from .export.plots import draw, fap_panels
+    from .export.plots import fap_panels, figure_png
 
     times, panels = fap_panels(stream)
-    figure = draw(times, "time (s)", panels, title="FAPs read back from the performance", figure_class=Figure)
-    FigureCanvasAgg(figure)
-    png = io.BytesIO()
-    figure.savefig(png, format="png", dpi=80)
-    return base64.b64encode(png.getvalue()).decode("ascii")
+    try:
+        png = figure_png(times, "time (s)", panels, title="FAPs read back from the performance", dpi=80)
+    except ImportError:
+        return None
+    return base64.b64encode(png).decode("ascii")
 
 
 def _write_report(result: DemoResult, stills, *, frames: int, vertices: int, curves: str | None = None) -> None:

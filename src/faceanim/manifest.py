@@ -24,7 +24,7 @@ VIDEO_SUFFIXES = (".mp4", ".mov", ".avi", ".mkv", ".webm", ".m4v", ".mpg", ".mpe
 MANIFEST_SUFFIXES = (".csv", ".jsonl")
 MANIFEST_COLUMNS = ("path", "name", "neutral", "no_filter", "target")
 # step -> the output it writes, named as the README's single commands name theirs (d18.fap, d18_aus.csv, d18.glb)
-STEPS = {"encode": "{name}.fap", "aus": "{name}_aus.csv", "animate": "{name}.glb"}
+STEPS = {"encode": "{name}.fap", "aus": "{name}_aus.csv", "animate": "{name}.glb", "plot": "{name}_curves.png"}
 _TRUE, _FALSE = ("1", "true", "yes", "on"), ("", "0", "false", "no", "off")
 
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import FileFormatError, InputError
 
-__all__ = ["plot", "draw", "Panel", "curve_panels", "fap_panels", "GROUPS", "MOST_ACTIVE"]
+__all__ = ["plot", "draw", "figure_png", "Panel", "curve_panels", "fap_panels", "GROUPS", "MOST_ACTIVE"]
 
 GROUPS = ("jaw", "lips", "brows", "lids", "eyes", "cheeks & nose", "head", "other")
 MOST_ACTIVE = 6  # curves named per panel; the rest are drawn grey
@@ -201,16 +201,33 @@ def plot(source, output, *, title: str | None = None) -> list[Panel]:
 
     output = Path(output)
     check_outputs({"-o": (output, ".png")}, inputs={"FILE": source})
+    x, xlabel, panels = curve_panels(source)
+    if not panels:
+        raise InputError(f"{source}: no curve holds a value to plot")
+    png = figure_png(x, xlabel, panels, title=title or Path(source).name)
+    with atomic_output(output, suffix=".png") as tmp:
+        tmp.write_bytes(png)
+    return panels
+
+
+def figure_png(x, xlabel: str, panels: list[Panel], *, title: str, dpi: int = 100) -> bytes:
+    """:func:`draw`'s figure as PNG bytes (what ``faceanim plot`` writes, the demo report embeds and
+    ``faceanim batch --do plot`` writes per video).
+
+    Raises
+    ------
+    ImportError
+        matplotlib is missing (the ``plot`` extra: ``pip install 'faceanim[plot]'``).
+    """
+    import io
+
     try:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
     except ImportError:
         raise ImportError("faceanim plot needs matplotlib: pip install 'faceanim[plot]'") from None
-    x, xlabel, panels = curve_panels(source)
-    if not panels:
-        raise InputError(f"{source}: no curve holds a value to plot")
-    figure = draw(x, xlabel, panels, title=title or Path(source).name, figure_class=Figure)
+    figure = draw(x, xlabel, panels, title=title, figure_class=Figure)
     FigureCanvasAgg(figure)
-    with atomic_output(output, suffix=".png") as tmp:
-        figure.savefig(tmp, format="png")
-    return panels
+    png = io.BytesIO()
+    figure.savefig(png, format="png", dpi=dpi)
+    return png.getvalue()
