@@ -4,25 +4,11 @@
 //   writes OUT_DIR/playing_a.png, playing_b.png (the face 1.5 s apart while playing), and with AU_NAME
 //   before_unit.png, unit.png (the face before and after that slider is set to 1), and OUT_DIR/report.json.
 const path = require('path');
-const fs = require('fs');
-const { chromium } = require(path.join(__dirname, 'node', 'node_modules', 'playwright-core'));
+const { withViewerPage } = require('./viewer_page');
 
 (async () => {
   const [url, out, unit] = process.argv.slice(2);
-  const browser = await chromium.launch({
-    executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-    // WebGL without a GPU: SwiftShader, Chromium's own software renderer.
-    args: ['--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist',
-      '--autoplay-policy=no-user-gesture-required'],
-  });
-  const report = { console_errors: [] };
-  try {
-    const page = await browser.newPage({ viewport: { width: 1400, height: 1300 } });
-    page.on('console', (m) => { if (m.type() === 'error') report.console_errors.push(m.text()); });
-    page.on('pageerror', (e) => report.console_errors.push(String(e)));
-    await page.goto(url);
-    await page.waitForFunction(() => window.viewer && (window.viewer.ready || window.viewer.errors.length),
-      null, { timeout: 90000 });
+  await withViewerPage(url, out, { width: 1400, height: 1300 }, async (page, report) => {
     const face = page.locator('#face');
     await page.waitForTimeout(500);
     report.time_a = await page.evaluate(() => window.viewer.time);
@@ -52,8 +38,5 @@ const { chromium } = require(path.join(__dirname, 'node', 'node_modules', 'playw
     }
     report.page_errors = await page.evaluate(() => window.viewer.errors);
     await page.screenshot({ path: path.join(out, 'page.png'), fullPage: true });
-  } finally {
-    fs.writeFileSync(path.join(out, 'report.json'), JSON.stringify(report));
-    await browser.close();
-  }
+  });
 })().catch((e) => { console.error(String(e)); process.exit(1); });

@@ -8,24 +8,11 @@
 //   unit is raised by 0.2 (OUT_DIR/adjusted.png), put back (restored.png, beside recipe.png), and after
 //   every unit of the recipe is set to 0.
 const path = require('path');
-const fs = require('fs');
-const { chromium } = require(path.join(__dirname, 'node', 'node_modules', 'playwright-core'));
+const { withViewerPage } = require('./viewer_page');
 
 (async () => {
   const [url, out] = process.argv.slice(2);
-  const browser = await chromium.launch({
-    executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-    args: ['--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist',
-      '--autoplay-policy=no-user-gesture-required'],
-  });
-  const report = { console_errors: [] };
-  try {
-    const page = await browser.newPage({ viewport: { width: 1280, height: 800 } });
-    page.on('console', (m) => { if (m.type() === 'error') report.console_errors.push(m.text()); });
-    page.on('pageerror', (e) => report.console_errors.push(String(e)));
-    await page.goto(url);
-    await page.waitForFunction(() => window.viewer && (window.viewer.ready || window.viewer.errors.length),
-      null, { timeout: 90000 });
+  await withViewerPage(url, out, { width: 1280, height: 800 }, async (page, report) => {
     await page.waitForTimeout(500);
     await page.screenshot({ path: path.join(out, 'window.png') });
     Object.assign(report, await page.evaluate(() => {
@@ -82,8 +69,5 @@ const { chromium } = require(path.join(__dirname, 'node', 'node_modules', 'playw
     }
     report.page_errors = await page.evaluate(() => window.viewer.errors);
     await page.screenshot({ path: path.join(out, 'page.png'), fullPage: true });
-  } finally {
-    fs.writeFileSync(path.join(out, 'report.json'), JSON.stringify(report));
-    await browser.close();
-  }
+  });
 })().catch((e) => { console.error(String(e)); process.exit(1); });
