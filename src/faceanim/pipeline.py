@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -216,6 +217,13 @@ def avatar(photo, output):
     return target
 
 
+class _Timing(NamedTuple):
+    """What the ``--csv`` curves need of a Track: its frames' presentation times and which had a face."""
+
+    times: np.ndarray
+    valid: np.ndarray
+
+
 def _write_extra_outputs(animation, stream, obj_sequence, csv, progress, recorded=None) -> None:
     """The ``--csv`` FAP curves (timed by the video's own presentation times where a Track ``recorded``
     is given) and the ``--obj-sequence``."""
@@ -352,6 +360,8 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
     recorded = track_video(video, progress=shown)
     motion = motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
+    if preview is None:  # the landmarks are read again only to draw the preview's overlay: let them go
+        recorded = _Timing(recorded.times, recorded.valid)
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
     if via == "motion" and len(shared_points(motion, target)) < MINIMUM_SHARED_POINTS:
         warnings.warn(f"the target shares only {len(shared_points(motion, target))} control points with the tracker; "
