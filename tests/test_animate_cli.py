@@ -1,6 +1,7 @@
 """`faceanim decode` and `faceanim animate` end to end (real data; skipped without it)."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -152,3 +153,31 @@ def test_decode_onto_the_default_avatar_with_obj_sequence_and_csv(tmp_path, caps
     assert main(["decode", str(joy), "-o", str(tmp_path / "b.glb"), "--obj-sequence", str(tmp_path / "full")]) == 2
     assert "full: exists and is not an empty folder" in capsys.readouterr().err
     assert not (tmp_path / "b.glb").exists() and (tmp_path / "full" / "keep.txt").read_text() == "mine"
+
+
+def test_animate_without_a_preview_times_its_curves_by_the_video_and_spills_beside_the_output(tmp_path, monkeypatch):
+    """Without --preview the tracked landmarks are let go once the motion is made; the --csv curves still
+    carry the video's own times and found flags. The deformed frames are spilled in the output's folder
+    (not the system's temporary folder, a tmpfs on many systems)."""
+    import csv as csvlib
+    import tempfile
+
+    from faceanim.capture.track import track_video
+
+    folders = []
+    made = tempfile.TemporaryFile
+
+    def recorded(*args, **kwargs):
+        folders.append(kwargs.get("dir"))
+        return made(*args, **kwargs)
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", recorded)
+    video = shared("videos", "d0.mp4")
+    curves = tmp_path / "d0.csv"
+    assert main(["animate", str(video), "-o", str(tmp_path / "d0.glb"), "--csv", str(curves)]) == 0
+    assert tmp_path in [None if f is None else Path(f) for f in folders]
+    rows = list(csvlib.reader(open(curves)))
+    track = track_video(video, progress=False)
+    assert len(rows) == 1 + len(track)
+    times = [float(r[1]) for r in rows[1:]]
+    assert times == pytest.approx(track.times.tolist(), abs=1e-4)
