@@ -132,10 +132,9 @@ def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool =
 def _plot_faps(stream, path: Path, video: Video) -> None:
     """``video``'s FAP curves as ``faceanim plot`` draws them, into ``path``."""
     from .atomic import atomic_output
-    from .export.plots import fap_panels, figure_png
+    from .export.plots import fap_png
 
-    times, panels = fap_panels(stream)
-    png = figure_png(times, "time (s)", panels, title=f"{video.path.name}: FAPs")
+    png = fap_png(stream, title=f"{video.path.name}: FAPs")
     with atomic_output(path, suffix=".png") as tmp:
         tmp.write_bytes(png)
 

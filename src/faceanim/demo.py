@@ -221,11 +221,10 @@ def view_command(result: DemoResult) -> str:
 def _curves_png(stream) -> str | None:
     """``stream``'s FAP curves drawn as ``faceanim plot`` draws them (a panel per group, each on its own
     scale and unit), as a base64 PNG for the report; None without matplotlib (the ``plot`` extra)."""
-    from .export.plots import fap_panels, figure_png
+    from .export.plots import fap_png
 
-    times, panels = fap_panels(stream)
     try:
-        png = figure_png(times, "time (s)", panels, title="FAPs read back from the performance", dpi=80)
+        png = fap_png(stream, title="FAPs read back from the performance", dpi=80)
     except ImportError:
         return None
     return base64.b64encode(png).decode("ascii")

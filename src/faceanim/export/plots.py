@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import FileFormatError, InputError
 
-__all__ = ["plot", "draw", "figure_png", "Panel", "curve_panels", "fap_panels", "GROUPS", "MOST_ACTIVE"]
+__all__ = ["plot", "draw", "figure_png", "fap_png", "Panel", "curve_panels", "fap_panels", "GROUPS", "MOST_ACTIVE"]
 
 GROUPS = ("jaw", "lips", "brows", "lids", "eyes", "cheeks & nose", "head", "other")
 MOST_ACTIVE = 6  # curves named per panel; the rest are drawn grey
@@ -208,6 +208,12 @@ def plot(source, output, *, title: str | None = None) -> list[Panel]:
     with atomic_output(output, suffix=".png") as tmp:
         tmp.write_bytes(png)
     return panels
+
+
+def fap_png(stream, *, title: str, dpi: int = 100) -> bytes:
+    """A FapStream's curves over time, drawn as ``faceanim plot`` draws a ``.fap``, as PNG bytes."""
+    times, panels = fap_panels(stream)
+    return figure_png(times, "time (s)", panels, title=title, dpi=dpi)
 
 
 def figure_png(x, xlabel: str, panels: list[Panel], *, title: str, dpi: int = 100) -> bytes:
