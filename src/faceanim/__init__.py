@@ -46,6 +46,8 @@ JOBS = {
     "aus": ("faceanim.expressions", "aus"),
     "plot": ("faceanim.export.plots", "plot"),
     "batch": ("faceanim.dataset", "run_batch"),
+    "build_speaker": ("faceanim.speech", "build_speaker"),
+    "analyse_speech": ("faceanim.speech", "analyse_speech"),
 }  # no job shares its name with a module of the package (``faceanim.demo`` is the module; its job is run_demo)
 
 __all__ = ["FileFormatError", "InputError", "JOBS", "Mesh", "RbfWarp", "__version__", "read_mesh", "write_mesh",

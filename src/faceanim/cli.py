@@ -108,12 +108,42 @@ def _parser() -> argparse.ArgumentParser:
         p.add_argument("--head-motion", action="store_true", help="turn the head as the FAPs (48-50) say")
         p.add_argument("--obj-sequence", metavar="DIR", help="also write the animation as numbered OBJ files")
         p.add_argument("--csv", metavar="FAPS.csv", help="also write the FAP curves as CSV")
+        if name == "decode":
+            p.add_argument("--speaker", metavar="SPEAKER.npz",
+                           help="interpret the FAPs through this speaker model first (faceanim speaker build): "
+                                "the lips', jaw's and cheeks' FAPs regenerated from the articulatory parameters "
+                                "that best explain those received, missing ones filled in")
         if name == "animate":
             p.add_argument("--fap", metavar="OUT.fap", help="also write the video's FAPs")
             p.add_argument("--via", choices=("motion", "faps"), default="motion",
                            help="motion (default): every tracked point the target shares moves it, in 3D; "
                                 "faps: only what the MPEG-4 FAPs carry, as decode would play the .fap")
             _capture_arguments(p, image=False)
+
+    p = commands.add_parser("speaker", help="a speaker's articulatory model: build it, analyse speech with it",
+                            description="A speaker's linear articulatory model (jaw and lips: x = x0 + sum a_k d_k) "
+                                        "from a speech video, and the FAPs of a video as that model explains them. "
+                                        "faceanim decode --speaker decodes a FAP stream through the model.")
+    speaker = p.add_subparsers(dest="speaker_command", required=True, metavar="STEP")
+    p = speaker.add_parser("build", help="build the model from a speech video",
+                           description="Track VIDEO and build the speaker's model of its mobile points (lips, jaw, "
+                                       "chin, cheeks; cm, head frame) from its frames.")
+    p.add_argument("video", metavar="VIDEO")
+    p.add_argument("-o", "--output", required=True, metavar="SPEAKER.npz")
+    p.add_argument("--params", type=int, default=6, metavar="K", help="articulatory parameters (default 6)")
+    p.add_argument("--frames", metavar="START:END", help="build from these frames only (end exclusive)")
+    p.add_argument("--method", choices=("pca", "guided"), default="pca",
+                   help="pca: principal components (default, measured best on held-out frames); guided: the jaw "
+                        "first, then the lips' protrusion, opening, upper lip, lower lip, corners")
+    _capture_arguments(p, image=False)
+    p = speaker.add_parser("analyse", help="a video's FAPs as the speaker model explains them",
+                           description="Track VIDEO, fit the model's parameters to each frame's mobile points and "
+                                       "write the FAPs of the model's points.")
+    p.add_argument("video", metavar="VIDEO")
+    p.add_argument("--model", required=True, metavar="SPEAKER.npz")
+    p.add_argument("-o", "--output", required=True, metavar="SPEECH.fap")
+    p.add_argument("--params-csv", metavar="PARAMS.csv", help="also write the parameters per frame")
+    _capture_arguments(p, image=False)
 
     p = commands.add_parser("avatar", help="a textured 3D face from a portrait",
                             description="Make an animatable 3D face from a portrait photo: the tracker's face "
@@ -316,7 +346,7 @@ def _run(args, progress) -> str:
         animation = pipeline.decode(args.source, args.output, target_mesh=args.target, points=args.points,
                                     fdp=args.fdp, preview=args.preview, head_motion=args.head_motion,
                                     obj_sequence=args.obj_sequence, csv=args.csv, progress=progress,
-                                    parts=args.parts)
+                                    parts=args.parts, speaker=args.speaker)
         return f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview else "")
     if args.command == "animate":
         animation, _ = pipeline.animate(args.source, args.output, target_mesh=args.target, points=args.points,
@@ -325,6 +355,23 @@ def _run(args, progress) -> str:
                                         csv=args.csv, via=args.via, neutral=args.neutral,
                                         smoothing=not args.no_filter, progress=progress, parts=args.parts)
         return f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview else "")
+    if args.command == "speaker":
+        from . import speech
+
+        if args.speaker_command == "build":
+            model, explained = speech.build_speaker(args.video, args.output, params=args.params, frames=args.frames,
+                                                    method=args.method, neutral=args.neutral,
+                                                    smoothing=not args.no_filter, progress=progress)
+            return (f"wrote {args.output}: {model.parameter_count} parameters ({model.method}: "
+                    f"{', '.join(model.parameter_names)}) over {len(model.names)} mobile points and "
+                    f"{len(model.fap_columns)} FAPs; {100 * explained:.1f}% of their variance on the frames used")
+        stream, parameters, clipped = speech.analyse_speech(
+            args.video, args.output, model=args.model, params_csv=args.params_csv, neutral=args.neutral,
+            smoothing=not args.no_filter, progress=progress)
+        note = f"; {clipped} values clipped to their MPEG-4 range" if clipped else ""
+        return (f"wrote {args.output}: {len(stream)} frames, {int(stream.mask.any(axis=0).sum())} FAPs from "
+                f"{parameters.shape[1]} parameters{note}" + (f", parameters in {args.params_csv}"
+                                                            if args.params_csv else ""))
     if args.command == "avatar":
         target = pipeline.avatar(args.photo, args.output)
         return f"wrote {args.output}: {len(target.mesh.vertices)} vertices, {len(target.points)} control points"

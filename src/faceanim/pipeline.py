@@ -295,12 +295,14 @@ def _ready_target(target, mesh_path, points, fdp, parts, progress):
 
 
 def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview=None, head_motion=False,
-           target=None, obj_sequence=None, csv=None, progress=None, parts=None):
+           target=None, obj_sequence=None, csv=None, progress=None, parts=None, speaker=None):
     """``faceanim decode``: a ``.fap`` file onto a target mesh, written as an animated ``.glb``.
     ``target``, a ready :class:`~faceanim.target.Target`, stands in for the mesh and its points;
     ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None);
     ``parts``, a ``PARTS.json`` (see :func:`~faceanim.parts.read_parts_file`), labels the target's parts
-    where its file and its geometry do not tell them apart. Returns the streamed
+    where its file and its geometry do not tell them apart; ``speaker``, a speaker model file
+    (``faceanim speaker build``), interprets the stream first
+    (:meth:`~faceanim.speaker.SpeakerModel.regularise`). Returns the streamed
     :class:`~faceanim.geometry.animation.Animation`: reading its frames deforms them again."""
     from .mpeg4.fapfile import read_fap
     from .progress import as_progress
@@ -310,9 +312,13 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     check_outputs({"-o": (output, ".glb"), "--preview": (preview, ".mp4"), "--csv": (csv, ".csv"),
                    "--obj-sequence": (obj_sequence, SEQUENCE_FOLDER)},
                   inputs={"FILE.fap": fap_path, "--target": target_mesh, "--points": points, "--fdp": fdp,
-                          "--parts": parts})
+                          "--parts": parts, "--speaker": speaker})
     shown = as_progress(progress)
     stream = read_fap(fap_path)
+    if speaker is not None:
+        from .speaker import read_speaker
+
+        stream = read_speaker(speaker).regularise(stream)
     target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
     shown.status(f"playing {len(stream)} frames of FAPs on the target ({len(target.mesh.vertices):,} vertices)")
     animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)

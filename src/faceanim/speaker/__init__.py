@@ -1,0 +1,16 @@
+"""The speaker's articulatory model (the ICP clone's): built from a speech video (:mod:`.build`), a
+linear map from a few parameters to the lips', jaw's and cheeks' points and their FAPs, and the
+interpretation of received FAP streams through it (:class:`SpeakerModel`); kept in a versioned
+``.npz`` (:mod:`.speakerfile`).
+
+>>> import faceanim.speaker as speaker
+>>> speaker.DEFAULT_RIDGE
+0.0001
+"""
+
+from .build import METHODS, build_model, mobile_names, reconstruction_error
+from .model import DEFAULT_RIDGE, SpeakerModel, fap_measurement
+from .speakerfile import SPEAKER_VERSION, read_speaker, write_speaker
+
+__all__ = ["SpeakerModel", "build_model", "mobile_names", "reconstruction_error", "fap_measurement", "read_speaker",
+           "write_speaker", "DEFAULT_RIDGE", "METHODS", "SPEAKER_VERSION"]

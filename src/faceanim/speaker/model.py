@@ -1,0 +1,343 @@
+"""`SpeakerModel`: a speaker's linear articulatory model and its interpretation of FAP streams.
+
+The mobile points of a face during speech (lips, jaw, chin, cheeks) move as ``x = x0 + sum_k a_k d_k``:
+a rest shape and ``K`` displacement vectors, one per articulatory parameter (jaw, lip protrusion,
+opening, ...). That model, kept inside a decoder, interprets a received FAP stream (the ICP "clone"
+platform, Elisei, Odisio and Bailly 2001): it finds the parameters that best explain whichever FAPs
+arrived in each frame, in the least-squares sense, and regenerates every FAP the model ties to a
+point. The FAPs that were not sent are filled in, and much of the coding noise goes.
+
+The forward map is exact and linear. Parameters give points; points give FAPs as
+:func:`faceanim.motion.motion_to_faps` measures them (a point's displacement along the FAP's direction,
+in its FAPU; the points the jaw carries after the jaw's swing, :mod:`faceanim.mpeg4.jaw`), with one
+difference: the swing here follows the chin's drop on both sides of rest, as the decoder plays
+``open_jaw`` (``motion_to_faps`` takes no swing out for a chin above rest). The two agree wherever the
+chin is at or below rest.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..mpeg4 import FAP_COUNT, Fapu, fap_table
+from ..mpeg4.fapstream import FapStream
+from ..mpeg4.jaw import JAW_CARRIED, jaw_hinge
+from ..validation import as_array, as_index_array, restore_frozen
+
+__all__ = ["SpeakerModel", "DEFAULT_RIDGE", "fap_measurement"]
+
+# The ridge of the interpretation, in cm^2 (the parameters have unit variance over the frames the model
+# was built on, so this is the squared noise, in cm, that one received FAP may carry for one unit of a
+# parameter): small beside a frame of 30 FAPs, and enough to hold a parameter that a few FAPs barely see.
+DEFAULT_RIDGE = 1e-4
+
+
+def fap_measurement(names, neutral: np.ndarray, fapu: Fapu, others: dict | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The FAPs that points ``names`` observe, as a linear map of their displacements.
+
+    Parameters
+    ----------
+    names : sequence of str, (P,)
+        The moving points (MPEG-4 feature points by number, others by any name).
+    neutral : (P, 3) float64
+        Their rest positions (model units, head frame, MPEG-4 axes).
+    fapu : Fapu
+    others : dict of str to (3,) array, optional
+        Positions of points that do not move, for the jaw's hinge (9.15, 2.13, 2.14 where they are not
+        among ``names``).
+
+    Returns
+    -------
+    columns : (J,) int64
+        The FAPs observed (column ``j`` is FAP ``j + 1``), ascending.
+    matrix : (J, 3P) float64
+        ``faps = matrix @ displacements.reshape(-1)`` in FAPU; the swing of the jaw (first order,
+        :func:`faceanim.mpeg4.jaw.jaw_swing`) is taken out of the carried points as the decoder puts it in.
+    """
+    table = fap_table()
+    names = tuple(names)
+    lookup = {n: i for i, n in enumerate(names)}
+    units = fapu.scale()
+    at = {**(others or {}), **dict(zip(names, neutral, strict=True))}
+    opening = table.number("open_jaw") - 1
+    down = table.direction[opening]
+    hinge = jaw_hinge(at, fapu) if "2.1" in lookup else None
+    rows, columns = [], []
+    for j in range(2, FAP_COUNT):
+        points = table.feature_points[j]
+        if len(points) != 1 or points[0] not in lookup or not table.direction[j].any():
+            continue
+        row = np.zeros((len(names), 3))
+        row[lookup[points[0]]] = table.direction[j]
+        if hinge is not None and (points[0] in JAW_CARRIED or (points[0] == "2.1" and j != opening)):
+            r = at[points[0]] - hinge
+            arm = at["2.1"][2] - hinge[2]
+            row[lookup["2.1"]] -= down * (np.array([0.0, -r[2], r[1]]) @ table.direction[j]) / arm
+        rows.append(row.reshape(-1) / units[j])
+        columns.append(j)
+    return np.array(columns, dtype=np.int64), np.array(rows).reshape(len(rows), 3 * len(names))
+
+
+@dataclass(frozen=True, eq=False)
+class SpeakerModel:
+    """A speaker's linear articulatory model; immutable, checked on construction.
+
+    Parameters
+    ----------
+    names : tuple of str, (P,)
+        The mobile points (lips, jaw, chin, cheeks).
+    neutral : (P, 3) float64
+        Their positions at rest, where every FAP is 0 (cm, head frame, MPEG-4 axes).
+    rest : (P, 3) float64
+        ``x0``, the shape at parameters 0 (the mean of the frames the model was built on).
+    basis : (K, P, 3) float64
+        ``d_k``, cm per unit of parameter ``k``.
+    parameter_names : tuple of str, (K,)
+    static_names : tuple of str, (S,)
+        The rest of the face, which the model holds still.
+    static_points : (S, 3) float64
+    triangles : (F, 3) int64
+        A triangulation of the mobile then the static points (indices into both, in that order).
+    fapu : Fapu
+        Of the speaker's neutral face (cm).
+    ranges : (K, 2) float64
+        The lowest and highest value of each parameter over the frames the model was built on.
+    fps : float
+        The frame rate of the video it was built from: the rate of the streams :meth:`to_faps` makes.
+    method : str
+        How the displacement vectors were found (``"pca"`` or ``"guided"``).
+    ridge : float
+        The interpretation's ridge, cm^2 (see :data:`DEFAULT_RIDGE`).
+    """
+
+    names: tuple[str, ...]
+    neutral: np.ndarray
+    rest: np.ndarray
+    basis: np.ndarray
+    parameter_names: tuple[str, ...]
+    static_names: tuple[str, ...]
+    static_points: np.ndarray
+    triangles: np.ndarray
+    fapu: Fapu
+    ranges: np.ndarray
+    fps: float
+    method: str = "pca"
+    ridge: float = DEFAULT_RIDGE
+    _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        names, static = tuple(self.names), tuple(self.static_names)
+        for what, group in (("names", names), ("static_names", static), ("parameter_names", self.parameter_names)):
+            if not all(isinstance(n, str) for n in group):
+                raise TypeError(f"{what} must be strings")
+        if len(set(names + static)) != len(names) + len(static):
+            raise ValueError("point names must be distinct across names and static_names")
+        if not isinstance(self.fapu, Fapu):
+            raise TypeError(f"fapu must be a Fapu, got {type(self.fapu).__name__}")
+        P = len(names)
+        neutral = as_array(self.neutral, "neutral", shape=(P, 3), frozen=True)
+        rest = as_array(self.rest, "rest", shape=(P, 3), frozen=True)
+        basis = as_array(self.basis, "basis", shape=("K", P, 3), min_length=1, frozen=True)
+        K = len(basis)
+        if len(self.parameter_names) != K:
+            raise ValueError(f"parameter_names must name the {K} parameters, got {len(self.parameter_names)}")
+        points = as_array(self.static_points, "static_points", shape=(len(static), 3), frozen=True)
+        triangles = as_index_array(self.triangles, "triangles", upper=P + len(static), shape=("F", 3), frozen=True)
+        ranges = as_array(self.ranges, "ranges", shape=(K, 2), frozen=True)
+        if not (np.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"fps must be a positive number, got {self.fps!r}")
+        if self.method not in ("pca", "guided"):
+            raise ValueError(f"method must be pca or guided, got {self.method!r}")
+        if not (np.isfinite(self.ridge) and self.ridge >= 0):
+            raise ValueError(f"ridge must be a number from 0, got {self.ridge!r}")
+        if np.linalg.matrix_rank(basis.reshape(K, -1)) < K:
+            raise ValueError(f"basis must hold {K} independent displacement vectors")
+        for name, value in (("names", names), ("neutral", neutral), ("rest", rest), ("basis", basis),
+                            ("parameter_names", tuple(self.parameter_names)), ("static_names", static),
+                            ("static_points", points), ("triangles", triangles), ("ranges", ranges),
+                            ("fps", float(self.fps)), ("ridge", float(self.ridge))):
+            object.__setattr__(self, name, value)
+        if len(self.fap_columns) < K:
+            raise ValueError(f"the mobile points observe {len(self.fap_columns)} FAPs, fewer than the {K} parameters")
+
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state["_cache"] = {}
+        return state
+
+    def __setstate__(self, state):
+        restore_frozen(self, state)
+
+    def _cached(self, key, compute) -> Any:
+        """The derived value ``key``, made once and kept (read-only) on this model, which never changes."""
+        try:
+            return self._cache[key]
+        except KeyError:
+            pass
+        value = compute()
+        for array in value if isinstance(value, tuple) else (value,):
+            if isinstance(array, np.ndarray):
+                array.flags.writeable = False
+        self._cache[key] = value
+        return value
+
+    # ---- the forward map: parameters -> points -> FAPs
+
+    @property
+    def parameter_count(self) -> int:
+        return len(self.basis)
+
+    def points(self, parameters) -> np.ndarray:
+        """(T, P, 3) positions of the mobile points for ``parameters (T, K)`` (cm, head frame)."""
+        a = as_array(parameters, "parameters", shape=("T", self.parameter_count), finite=False)
+        return self.rest + np.einsum("tk,kpc->tpc", a, self.basis)
+
+    def _forward(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        static = dict(zip(self.static_names, self.static_points, strict=True))
+        columns, M = fap_measurement(self.names, self.neutral, self.fapu, static)
+        G = M @ self.basis.reshape(self.parameter_count, -1).T  # (J, K) FAPU per unit parameter
+        offset = M @ (self.rest - self.neutral).reshape(-1)  # (J,) the FAPs at parameters 0
+        weight = self.fapu.scale()[columns]  # cm per FAP unit: residuals are weighed in cm
+        return columns, G, offset, weight
+
+    @property
+    def fap_columns(self) -> np.ndarray:
+        """(J,) the FAPs the model's points observe (column ``j`` is FAP ``j + 1``), ascending."""
+        return self._cached("forward", self._forward)[0]
+
+    @property
+    def fap_matrix(self) -> np.ndarray:
+        """(J, K) FAPU per unit of each parameter, for the FAPs :attr:`fap_columns`."""
+        return self._cached("forward", self._forward)[1]
+
+    @property
+    def fap_offset(self) -> np.ndarray:
+        """(J,) the FAPs of the rest shape (parameters 0)."""
+        return self._cached("forward", self._forward)[2]
+
+    def to_faps(self, parameters, *, fps: float | None = None, name: str = "speaker") -> FapStream:
+        """The FAP stream of ``parameters (T, K)`` at ``fps`` (default: the model's): every FAP of
+        :attr:`fap_columns` on every frame whose parameters are finite; no FAP on the others."""
+        a = as_array(parameters, "parameters", shape=("T", self.parameter_count), finite=False)
+        present = np.isfinite(a).all(axis=1)
+        values = np.zeros((len(a), FAP_COUNT))
+        mask = np.zeros((len(a), FAP_COUNT), dtype=bool)
+        values[np.ix_(present, self.fap_columns)] = a[present] @ self.fap_matrix.T + self.fap_offset
+        mask[np.ix_(present, self.fap_columns)] = True
+        return FapStream(values, mask, self.fps if fps is None else fps, name=name)
+
+    # ---- the inverse: the FAPs that arrived -> parameters
+
+    def solver(self, received) -> np.ndarray:
+        """(K, n) the ridge pseudo-inverse for the model's FAPs flagged in ``received (J,) bool`` (n of
+        them): ``parameters = solver @ (faps - offset)`` on those FAPs. It depends only on which FAPs
+        arrived, so it is made once per subset and kept.
+
+        The solve is ``min |W (G a - f)|^2 + ridge |a|^2`` with ``W`` the FAPs' units in cm, so every
+        FAP's error counts as the distance its point is off."""
+        received = np.asarray(received, dtype=bool)
+        key = ("solver", received.tobytes())
+        return self._cached(key, lambda: self._solver(received))
+
+    def _solver(self, received: np.ndarray) -> np.ndarray:
+        _, G, _, weight = self._cached("forward", self._forward)
+        A = weight[received, None] * G[received]
+        normal = A.T @ A + self.ridge * np.eye(self.parameter_count)
+        return np.linalg.solve(normal, A.T * weight[received])
+
+    def _received(self, stream: FapStream) -> np.ndarray:
+        if not isinstance(stream, FapStream):
+            raise TypeError(f"stream must be a FapStream, got {type(stream).__name__}")
+        return stream.mask[:, self.fap_columns]
+
+    def _check_enough(self, stream: FapStream, received: np.ndarray) -> np.ndarray:
+        """Frames carrying at least as many of the model's FAPs as it has parameters; a stream in which
+        no frame does is refused."""
+        counts = received.sum(axis=1)
+        enough = counts >= self.parameter_count
+        if len(stream) and not enough.any():
+            most = int(counts.max())
+            carried = "none of the speaker model's FAPs" if most == 0 else (
+                f"at most {most} of the speaker model's {len(self.fap_columns)} FAPs on a frame")
+            raise InputError(f"the FAP stream {stream.name} carries {carried}; its {self.parameter_count} "
+                             f"parameters need at least {self.parameter_count} on a frame")
+        return enough
+
+    def _groups(self, received: np.ndarray, enough: np.ndarray):
+        """(frames, received mask) for each subset of FAPs that frames with enough FAPs carry."""
+        frames = np.flatnonzero(enough)
+        bits = np.packbits(received[frames], axis=1, bitorder="little")
+        bits = np.pad(bits, ((0, 0), (0, -bits.shape[1] % 8)))
+        keys = np.ascontiguousarray(bits).view(np.uint64)  # 64 FAPs to a key
+        if keys.shape[1] == 1:
+            _, inverse = np.unique(keys[:, 0], return_inverse=True)
+        else:
+            _, inverse = np.unique(keys, axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        order = np.argsort(inverse, kind="stable")
+        bounds = np.flatnonzero(np.diff(inverse[order])) + 1
+        for group in np.split(order, bounds):
+            if len(group):
+                yield frames[group], received[frames[group[0]]]
+
+    def to_parameters(self, stream: FapStream) -> np.ndarray:
+        """(T, K) the parameters that best explain each frame's FAPs (see :meth:`solver`); NaN on
+        frames carrying fewer of the model's FAPs than it has parameters.
+
+        Raises
+        ------
+        InputError
+            No frame carries that many (the subset cannot determine the parameters).
+        """
+        received = self._received(stream)
+        enough = self._check_enough(stream, received)
+        a = np.full((len(stream), self.parameter_count), np.nan)
+        values = stream.values[:, self.fap_columns] - self.fap_offset
+        for frames, mask in self._groups(received, enough):
+            a[frames] = values[np.ix_(frames, np.flatnonzero(mask))] @ self.solver(mask).T
+        return a
+
+    def regularise(self, stream: FapStream) -> FapStream:
+        """``stream`` as the model explains it: on each frame carrying at least as many of the model's
+        FAPs as it has parameters, every one of the model's FAPs is regenerated from the parameters
+        that best explain those received (filled in where absent, denoised where present). Other FAPs
+        (eyes, brows, head) pass through as they arrived, and so do frames carrying too few of the
+        model's FAPs (a frame without a face carries none).
+
+        Raises
+        ------
+        InputError
+            No frame carries as many of the model's FAPs as it has parameters: the subset sent cannot
+            determine them (one line, naming the counts).
+        """
+        received = self._received(stream)
+        enough = self._check_enough(stream, received)
+        values, mask = stream.values.copy(), stream.mask.copy()
+        measured = stream.values[:, self.fap_columns] - self.fap_offset
+        G = self.fap_matrix
+        for frames, subset in self._groups(received, enough):
+            operator = self._cached(("regularise", subset.tobytes()), lambda s=subset: G @ self.solver(s))
+            result = measured[np.ix_(frames, np.flatnonzero(subset))] @ operator.T + self.fap_offset
+            values[np.ix_(frames, self.fap_columns)] = result
+        mask[np.ix_(enough, self.fap_columns)] = True
+        return FapStream(values, mask, stream.fps, frame_numbers=stream.frame_numbers, visemes=stream.visemes,
+                         expressions=stream.expressions, name=stream.name)
+
+    # ---- points -> parameters
+
+    def fit_points(self, displacements) -> np.ndarray:
+        """(T, K) the parameters whose points are nearest (least squares, cm) to the mobile points
+        displaced by ``displacements (T, P, 3)`` from :attr:`neutral`; NaN on frames holding NaN.
+        Displacements from the neutral carry a face measured in another capture of the speaker."""
+        d = as_array(displacements, "displacements", shape=("T", len(self.names), 3), finite=False)
+        x = (self.neutral - self.rest + d).reshape(len(d), -1)
+        B = self.basis.reshape(self.parameter_count, -1)
+        projector = self._cached("fit_points", lambda: np.linalg.pinv(B.T))
+        a = x @ projector.T
+        a[~np.isfinite(x).all(axis=1)] = np.nan
+        return a

@@ -1,0 +1,316 @@
+"""The speaker's articulatory model (faceanim.speaker) and its jobs (faceanim.speech)."""
+
+import numpy as np
+import pytest
+from conftest import SHARED
+
+from faceanim.capture.headframe import landmark_names
+from faceanim.capture.metric import canonical_face
+from faceanim.cli import main
+from faceanim.errors import FileFormatError, InputError
+from faceanim.motion import Motion, motion_to_faps
+from faceanim.mpeg4 import FAP_COUNT, Fapu, fap_table
+from faceanim.mpeg4.fapfile import read_fap
+from faceanim.mpeg4.fapstream import FapStream
+from faceanim.speaker import build_model, mobile_names, read_speaker, write_speaker
+
+TABLE = fap_table()
+FAPU = Fapu(irisd0=1.0, es0=6.4, ens0=4.4, mns0=2.0, mw0=5.2)
+EIGHT = [3, 14, 16, 17, 51, 52, 53, 54]  # the FAPs the ICP figure sends
+
+
+def synthetic(frames=240, count=3, seed=0, noise=0.0, scale=1.0):
+    """A Motion of MediaPipe's canonical face (cm, times ``scale``) whose mobile points move by a known
+    linear model of ``count`` parameters; returns the motion, the true vectors (count, P, 3) and the
+    true parameters (frames, count)."""
+    rng = np.random.default_rng(seed)
+    neutral = canonical_face().vertices * scale
+    names = landmark_names(len(neutral))
+    stand_in = Motion(names, neutral, np.zeros((1, len(names), 3)), np.eye(4)[None], 25.0, FAPU)
+    index = stand_in.index(mobile_names(stand_in))
+    vectors = rng.normal(scale=0.1 * scale, size=(count, len(index), 3))
+    parameters = rng.normal(size=(frames, count))
+    parameters[:, 0] = np.abs(parameters[:, 0])  # the first opens the jaw (chin at or below rest)
+    vectors[0, :, 1] -= 0.2 * scale
+    d = np.zeros((frames, len(names), 3))
+    d[:, index] = np.einsum("tk,kpc->tpc", parameters, vectors) + rng.normal(scale=noise * scale,
+                                                                               size=(frames, len(index), 3))
+    fapu = Fapu(*(scale * v for v in (FAPU.irisd0, FAPU.es0, FAPU.ens0, FAPU.mns0, FAPU.mw0)))
+    return Motion(names, neutral, d, np.tile(np.eye(4), (frames, 1, 1)), 25.0, fapu), vectors, parameters
+
+
+def columns(numbers):
+    return np.array(numbers) - 1
+
+
+def principal_angles(a, b) -> np.ndarray:
+    qa, _ = np.linalg.qr(a.reshape(len(a), -1).T)
+    qb, _ = np.linalg.qr(b.reshape(len(b), -1).T)
+    return np.arccos(np.clip(np.linalg.svd(qa.T @ qb, compute_uv=False), -1, 1))
+
+
+@pytest.mark.parametrize("method", ["pca", "guided"])
+def test_a_model_built_from_a_known_linear_model_recovers_its_subspace(method):
+    motion, vectors, _ = synthetic()
+    model = build_model(motion, parameters=3, method=method)
+    assert principal_angles(model.basis, vectors).max() < 1e-6
+    np.testing.assert_allclose(model.points(model.fit_points(motion.displacements[:, motion.index(model.names)])),
+                               motion.neutral[motion.index(model.names)] + motion.displacements[:, motion.index(
+                                   model.names)], atol=1e-9)
+    seen = model.fit_points(motion.displacements[:, motion.index(model.names)])
+    np.testing.assert_allclose(seen.std(axis=0), 1.0, atol=1e-9)  # parameters of unit variance
+    np.testing.assert_allclose(model.ranges, np.stack([seen.min(axis=0), seen.max(axis=0)], axis=1))
+    assert model.method == method and len(model.parameter_names) == 3
+
+
+def test_guided_parameters_are_named_and_the_jaw_opens_downwards():
+    motion, _, _ = synthetic(count=6)
+    model = build_model(motion, parameters=6, method="guided")
+    assert model.parameter_names == ("jaw", "protrusion", "opening", "upper_lip", "lower_lip", "corners")
+    chin = model.names.index("2.1")
+    assert model.basis[0, chin, 1] < 0  # a positive jaw parameter drops the chin
+
+
+def test_the_forward_map_measures_faps_as_motion_to_faps_does():
+    motion, _, truth = synthetic()
+    model = build_model(motion, parameters=3)
+    a = model.fit_points(motion.displacements[:, motion.index(model.names)])
+    ours = model.to_faps(a)
+    theirs = motion_to_faps(motion)
+    j = model.fap_columns
+    opening = TABLE.number("open_jaw") - 1
+    down = theirs.values[:, opening] >= 0  # motion_to_faps swings the jaw only for a chin at or below rest
+    assert down.sum() > 100
+    np.testing.assert_allclose(ours.values[down][:, j], theirs.values[down][:, j], atol=1e-8)
+    assert set(j + 1) == set(range(3, 19)) | {39, 40, 41, 42} | set(range(51, 61))
+    assert ours.mask[:, j].all() and not np.delete(ours.mask, j, axis=1).any()
+
+
+def test_faps_do_not_depend_on_the_unit_of_the_face():
+    streams = []
+    for scale in (1.0, 10.0, 0.01):  # cm, mm, m
+        motion, _, _ = synthetic(scale=scale)
+        model = build_model(motion, parameters=3)
+        streams.append(model.to_faps(model.fit_points(motion.displacements[:, motion.index(model.names)])))
+    for other in streams[1:]:
+        np.testing.assert_allclose(other.values, streams[0].values, atol=1e-7)
+
+
+def noisy(stream: FapStream, sigma: float, seed: int = 1) -> FapStream:
+    rng = np.random.default_rng(seed)
+    return FapStream(stream.values + rng.normal(scale=sigma, size=stream.values.shape) * stream.mask,
+                     stream.mask, stream.fps)
+
+
+def test_regularising_a_noisy_model_stream_brings_it_closer_to_the_truth():
+    motion, _, _ = synthetic(count=6)
+    model = build_model(motion, parameters=6)
+    truth = model.to_faps(np.random.default_rng(2).normal(size=(300, 6)))
+    received = noisy(truth, sigma=8.0)
+    cleaned = model.regularise(received)
+    j = model.fap_columns
+    before = np.sqrt(((received.values[:, j] - truth.values[:, j]) ** 2).mean())
+    after = np.sqrt(((cleaned.values[:, j] - truth.values[:, j]) ** 2).mean())
+    assert after < 0.6 * before
+    assert cleaned.mask[:, j].all()
+
+
+def subset(stream: FapStream, numbers, frames=None) -> FapStream:
+    mask = np.zeros_like(stream.mask)
+    rows = slice(None) if frames is None else frames
+    mask[rows, columns(numbers)] = stream.mask[rows, columns(numbers)]
+    return FapStream(stream.values, mask, stream.fps)
+
+
+def test_missing_faps_are_extrapolated_exactly_from_a_noise_free_model_stream():
+    motion, _, _ = synthetic(count=6)
+    exact = build_model(motion, parameters=6, ridge=0.0)
+    truth = exact.to_faps(np.random.default_rng(3).normal(size=(50, 6)))
+    eight = subset(truth, EIGHT)
+    np.testing.assert_allclose(exact.regularise(eight).values, truth.values, atol=1e-6)
+    np.testing.assert_allclose(exact.to_parameters(eight), exact.to_parameters(truth), atol=1e-8)
+    ridged = build_model(motion, parameters=6)  # the default small ridge: nearly exact
+    error = np.abs(ridged.regularise(subset(truth, EIGHT)).values - truth.values).max()
+    assert error < 0.02 * np.ptp(truth.values)
+
+
+def test_the_cached_solver_equals_a_fresh_least_squares_solve():
+    motion, _, _ = synthetic(count=6)
+    model = build_model(motion, parameters=6, ridge=1e-3)
+    received = np.isin(model.fap_columns + 1, EIGHT)
+    solver = model.solver(received)
+    assert model.solver(received.copy()) is solver  # kept per subset mask, whatever the values
+    f = np.random.default_rng(4).normal(size=received.sum()) * 50
+    w = FAPU.scale()[model.fap_columns][received]
+    A = np.vstack([w[:, None] * model.fap_matrix[received], np.sqrt(model.ridge) * np.eye(6)])
+    b = np.concatenate([w * (f - model.fap_offset[received]), np.zeros(6)])
+    fresh = np.linalg.lstsq(A, b, rcond=None)[0]
+    np.testing.assert_allclose(solver @ (f - model.fap_offset[received]), fresh, rtol=1e-9, atol=1e-12)
+    stream = FapStream(np.zeros((1, FAP_COUNT)), np.zeros((1, FAP_COUNT), bool), 25.0)
+    values, mask = stream.values.copy(), stream.mask.copy()
+    values[0, model.fap_columns[received]], mask[0, model.fap_columns[received]] = f, True
+    np.testing.assert_allclose(model.to_parameters(FapStream(values, mask, 25.0))[0], fresh, rtol=1e-9)
+
+
+def test_frames_with_too_few_faps_keep_what_arrived_and_other_faps_pass_through():
+    motion, _, _ = synthetic(count=6)
+    model = build_model(motion, parameters=6)
+    truth = model.to_faps(np.random.default_rng(5).normal(size=(4, 6)))
+    values, mask = truth.values.copy(), truth.mask.copy()
+    mask[1] = False
+    mask[1, columns([3, 4, 5])] = True  # three FAPs: fewer than the six parameters
+    mask[2] = False  # a frame without a face
+    head = TABLE.number("head_yaw") - 1
+    values[:, head], mask[:, head] = 1234.0, True
+    mask[2, head] = False
+    stream = FapStream(values, mask, 25.0)
+    out = model.regularise(stream)
+    for t in (1, 2):
+        np.testing.assert_array_equal(out.mask[t], stream.mask[t])
+        np.testing.assert_array_equal(out.values[t], stream.values[t])
+    assert out.mask[[0, 3]][:, model.fap_columns].all()
+    np.testing.assert_array_equal(out.values[[0, 1, 3], head], 1234.0)
+    assert np.isnan(model.to_parameters(stream)[[1, 2]]).all()
+
+
+def test_a_subset_too_small_on_every_frame_is_refused_in_one_line():
+    motion, _, _ = synthetic(count=6)
+    model = build_model(motion, parameters=6)
+    truth = model.to_faps(np.zeros((5, 6)))
+    with pytest.raises(InputError, match=r"carries at most 5 of the speaker model's 30 FAPs on a frame; its 6 "
+                                         r"parameters need at least 6") as caught:
+        model.regularise(subset(truth, [3, 14, 16, 17, 51]))
+    assert "\n" not in str(caught.value)
+    with pytest.raises(InputError, match="carries none of the speaker model's FAPs"):
+        model.to_parameters(subset(truth, [19, 20]))
+
+
+def test_the_model_file_round_trips(tmp_path):
+    motion, _, _ = synthetic()
+    model = build_model(motion, parameters=3, method="guided", ridge=2e-4)
+    write_speaker(tmp_path / "s.npz", model)
+    back = read_speaker(tmp_path / "s.npz")
+    for field in ("names", "parameter_names", "static_names", "method", "ridge", "fps", "fapu"):
+        assert getattr(back, field) == getattr(model, field)
+    for field in ("neutral", "rest", "basis", "static_points", "triangles", "ranges"):
+        np.testing.assert_array_equal(getattr(back, field), getattr(model, field))
+    assert back.triangles.max() < len(back.names) + len(back.static_names)
+    np.testing.assert_array_equal(back.fap_matrix, model.fap_matrix)
+
+
+def rewritten(tmp_path, **changes):
+    motion, _, _ = synthetic()
+    write_speaker(tmp_path / "good.npz", build_model(motion, parameters=3))
+    with np.load(tmp_path / "good.npz") as archive:
+        data = {k: archive[k] for k in archive.files}
+    data.update(changes)
+    for key in [k for k, v in changes.items() if v is None]:
+        del data[key]
+    np.savez(tmp_path / "bad.npz", **data)
+    return tmp_path / "bad.npz"
+
+
+@pytest.mark.parametrize("changes, match", [
+    ({"version": np.array(7)}, "is a speaker model of version 7; this faceanim reads version 1"),
+    ({"basis": np.zeros((3, 5, 3))}, r"basis must have shape \(K, \d+, 3\), got \(3, 5, 3\)"),
+    ({"neutral": np.zeros((4, 3))}, r"neutral must have shape \(\d+, 3\), got \(4, 3\)"),
+    ({"ranges": np.zeros((2, 2))}, r"ranges must have shape \(3, 2\)"),
+    ({"fapu": np.ones(4)}, "fapu must hold 5 distances"),
+    ({"triangles": np.full((2, 3), 10**6)}, "triangles"),
+    ({"method": np.array("magic")}, "method must be pca or guided"),
+    ({"rest": None}, "lacks the speaker model's rest"),
+])
+def test_bad_model_files_are_refused_in_one_line(tmp_path, changes, match):
+    with pytest.raises(FileFormatError, match=match) as caught:
+        read_speaker(rewritten(tmp_path, **changes))
+    assert "\n" not in str(caught.value) and "bad.npz" in str(caught.value)
+
+
+def test_a_file_that_is_no_npz_is_refused(tmp_path):
+    (tmp_path / "x.npz").write_text("hello")
+    with pytest.raises(FileFormatError, match="is not a speaker model"):
+        read_speaker(tmp_path / "x.npz")
+    np.save(tmp_path / "y.npz", np.zeros(3))  # a .npy under an .npz name
+    with pytest.raises(FileFormatError, match="is not a speaker model"):
+        read_speaker(tmp_path / "y.npz.npy")
+    with pytest.raises(InputError, match="no such file"):
+        read_speaker(tmp_path / "absent.npz")
+
+
+# ---- the commands on a real speech clip
+
+VIDEO = SHARED / "videos" / "speech_man.mp4"
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    if not VIDEO.exists():
+        pytest.skip(f"needs {VIDEO} (the shared data folder beside the checkout)")
+    folder = tmp_path_factory.mktemp("speaker")
+    assert main(["speaker", "build", str(VIDEO), "-o", str(folder / "man.npz"), "--frames", "0:60"]) == 0
+    return folder
+
+
+def test_speaker_build_and_analyse_on_a_real_clip(built, capsys):
+    model = read_speaker(built / "man.npz")
+    assert model.parameter_count == 6 and model.method == "pca" and len(model.fap_columns) == 30
+    assert main(["speaker", "analyse", str(VIDEO), "--model", str(built / "man.npz"), "-o", str(built / "man.fap"),
+                 "--params-csv", str(built / "p.csv")]) == 0
+    assert "wrote" in capsys.readouterr().out
+    stream = read_fap(built / "man.fap")
+    assert len(stream) == 125 and stream.mask[:, model.fap_columns].all()
+    lines = (built / "p.csv").read_text().splitlines()
+    assert lines[0] == "frame,timestamp,pc1,pc2,pc3,pc4,pc5,pc6" and len(lines) == 126
+    # the written stream is the model's own: interpreting it changes it by its rounding (and clipping) alone
+    again = model.regularise(stream)
+    assert np.abs(again.values - stream.values).mean() < 2.0
+
+
+def test_decode_through_the_speaker_model(built, tmp_path):
+    from conftest import grid_mesh
+
+    from faceanim.pipeline import decode
+    from faceanim.target import Target
+
+    model = read_speaker(built / "man.npz")
+    truth = model.to_faps(np.zeros((3, 6)) + [1, 0, 0, 0, 0, 0])
+    eight = subset(truth, EIGHT)
+    from faceanim.mpeg4.fapfile import write_fap
+
+    write_fap(tmp_path / "eight.fap", eight)
+    at = {"2.1": 4, "2.3": 13, "2.2": 22, "8.3": 24, "8.4": 20, "9.15": 40, "3.1": 61, "3.3": 52, "3.2": 55,
+          "3.4": 46, "3.5": 60, "3.6": 56, "2.4": 23, "8.2": 5}
+    target = Target(grid_mesh(9, size=8.0), at, Fapu(irisd0=1.0, es0=4.0, ens0=2.0, mns0=2.0, mw0=4.0))
+    plain = decode(tmp_path / "eight.fap", tmp_path / "plain.glb", target=target).positions
+    through = decode(tmp_path / "eight.fap", tmp_path / "through.glb", target=target,
+                     speaker=built / "man.npz").positions
+    corner = target.points["2.4"]  # no FAP of 2.4 was sent: only the model moves it
+    assert np.abs(plain[:, corner] - target.mesh.vertices[corner]).max() == 0
+    assert np.abs(through[:, corner] - target.mesh.vertices[corner]).max() > 1e-3
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--frames", "60:10"], "--frames 60:10: frames must satisfy 0 <= START < END"),
+    (["--frames", "0:5000"], "the video has 125 frames"),
+    (["--frames", "0:3"], "3 frames with a face are too few for 6 parameters"),
+    (["--params", "0"], "--params 0: give a whole number"),
+])
+def test_speaker_build_refuses_bad_arguments_in_one_line(built, capsys, tmp_path, argv, match):
+    assert main(["speaker", "build", str(VIDEO), "-o", str(tmp_path / "x.npz"), *argv]) == 2
+    err = capsys.readouterr().err
+    assert match in err and err.count("\n") == 1
+    assert not (tmp_path / "x.npz").exists()
+
+
+def test_decode_refuses_a_bad_speaker_file_and_a_too_small_subset(built, capsys, tmp_path):
+    (tmp_path / "bad.npz").write_text("no")
+    model = read_speaker(built / "man.npz")
+    from faceanim.mpeg4.fapfile import write_fap
+
+    write_fap(tmp_path / "few.fap", subset(model.to_faps(np.zeros((2, 6))), [3, 14, 16]))
+    for speaker, match in ((tmp_path / "bad.npz", "is not a speaker model"),
+                           (built / "man.npz", "carries at most 3 of the speaker model's 30 FAPs")):
+        code = main(["decode", str(tmp_path / "few.fap"), "-o", str(tmp_path / "o.glb"), "--speaker", str(speaker)])
+        err = capsys.readouterr().err
+        assert code == 2 and match in err and err.count("\n") == 1
+        assert not (tmp_path / "o.glb").exists()
