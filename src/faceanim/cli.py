@@ -132,9 +132,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, metavar="SPEAKER.npz")
     p.add_argument("--params", type=int, default=6, metavar="K", help="articulatory parameters (default 6)")
     p.add_argument("--frames", metavar="START:END", help="build from these frames only (end exclusive)")
-    p.add_argument("--method", choices=("pca", "guided"), default="pca",
-                   help="pca: principal components (default, measured best on held-out frames); guided: the jaw "
-                        "first, then the lips' protrusion, opening, upper lip, lower lip, corners")
+    p.add_argument("--method", choices=("guided", "pca"), default="guided",
+                   help="guided (default): the jaw first, then the lips' protrusion, opening, upper lip, lower lip, "
+                        "corners; pca: principal components (see benchmarks/results/speaker_model.md)")
     _capture_arguments(p, image=False)
     p = speaker.add_parser("analyse", help="a video's FAPs as the speaker model explains them",
                            description="Track VIDEO, fit the model's parameters to each frame's mobile points and "

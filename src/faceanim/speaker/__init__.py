@@ -5,7 +5,7 @@ interpretation of received FAP streams through it (:class:`SpeakerModel`); kept 
 
 >>> import faceanim.speaker as speaker
 >>> speaker.DEFAULT_RIDGE
-0.0001
+0.001
 """
 
 from .build import METHODS, build_model, mobile_names, reconstruction_error
