@@ -287,3 +287,107 @@ def test_read_fba_10000_mutated_files_zero_undeclared_errors(tmp_path, program):
         return
     assert data in SEEDS or (len(program) > 1 and program[1] & 1), "a changed file passed its end check"
     assert len(stream) >= 1 and np.isfinite(stream.values).all() and not stream.mask[:, :2].any()
+
+
+# ---- the command line: faceanim fap-compress / fap-decompress
+
+
+def run_cli(capsys, *argv):
+    from faceanim.cli import main
+
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_compress_and_decompress_a_real_file(tmp_path, capsys):
+    joy = shared("xface", "Faps", "joy.fap")
+    code, out, err = run_cli(capsys, "fap-compress", joy, "-o", tmp_path / "joy.fba", "--quant", 2,
+                             "--faps", "3,14,16,17,51-54")
+    assert code == 0 and not err
+    size = (tmp_path / "joy.fba").stat().st_size
+    assert f"{size} bytes, 108 frames" in out and "kbit/s at 25 fps" in out and "over 8 FAPs (quant 2)" in out
+    code, out, err = run_cli(capsys, "fap-decompress", tmp_path / "joy.fba", "-o", tmp_path / "back.fap")
+    assert code == 0 and "108 frames, 8 FAPs" in out
+    back, original = read_fap(tmp_path / "back.fap"), read_fap(joy)
+    sent = np.array([3, 14, 16, 17, 51, 52, 53, 54]) - 1
+    assert within_half_step(original, back, 2.0, sent).max() <= 0.5
+    assert not np.delete(back.mask, sent, axis=1).any()
+
+
+def test_the_api_has_the_jobs(tmp_path):
+    import faceanim
+
+    result = faceanim.fap_compress(shared("xface", "Faps", "test.fap"), tmp_path / "t.fba", quant=1, faps="3-5")
+    assert result.faps == (3, 4, 5) and result.size == (tmp_path / "t.fba").stat().st_size
+    assert result.kbits_per_second == pytest.approx(result.size * 8 / (43 / 25) / 1000)
+    assert len(faceanim.fap_decompress(tmp_path / "t.fba", tmp_path / "t.fap")) == 43
+
+
+@pytest.mark.parametrize("faps, match", [
+    ("3,x", "--faps 3,x: 'x' is not a FAP number"), ("0", "FAP 0 is not one from 3 to 68"),
+    ("69", "FAP 69 is not one from 3 to 68"), ("5-3", "ends before it starts"), ("1", "visemes and expressions"),
+    ("3,,4", "'' is not a FAP number"), ("3-4-5", "not a FAP number or a range"),
+])
+def test_bad_fap_lists_are_one_line_and_nothing_is_written(tmp_path, capsys, faps, match):
+    code, out, err = run_cli(capsys, "fap-compress", shared("xface", "Faps", "test.fap"), "-o", tmp_path / "x.fba",
+                             "--faps", faps)
+    assert code == 2 and not out and err.count("\n") == 1 and match in err
+    assert not list(tmp_path.iterdir())
+
+
+def test_missing_truncated_and_misnamed_inputs_are_one_line_and_nothing_is_written(tmp_path, capsys, joy_fba):
+    (tmp_path / "cut.fba").write_bytes(joy_fba[:len(joy_fba) // 2])
+    cases = [
+        (("fap-compress", tmp_path / "none.fap", "-o", tmp_path / "x.fba"), "none.fap: no such file"),
+        (("fap-decompress", tmp_path / "none.fba", "-o", tmp_path / "x.fap"), "none.fba: no such file"),
+        (("fap-decompress", tmp_path / "cut.fba", "-o", tmp_path / "x.fap"), "cut.fba: is truncated or corrupt"),
+        (("fap-compress", shared("xface", "Faps", "test.fap"), "-o", tmp_path / "x.fap"), "written as .fba"),
+        (("fap-compress", shared("xface", "Faps", "test.fap"), "-o", tmp_path / "x.fba", "--quant", "0"),
+         "--quant 0.0: must be a positive number"),
+        (("fap-compress", shared("xface", "Faps", "test.fap"), "-o", tmp_path / "x.fba", "--quant", "1e-5"),
+         "use a coarser quant"),
+        (("fap-decompress", tmp_path / "cut.fba", "-o", tmp_path / "x.fap", "--speaker", tmp_path / "none.npz"),
+         "none.npz"),
+    ]
+    for argv, match in cases:
+        code, out, err = run_cli(capsys, *argv)
+        assert code == 2 and not out and err.count("\n") == 1 and match in err, (argv, err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.fba"]
+
+
+def test_decompress_through_a_speaker_model_fills_in_the_faps_not_sent(tmp_path, capsys):
+    """A stream the model generates, sent as the ICP figure's 8 FAPs: decoding through the model gives back
+    the model's other FAPs close to the truth (the .fap's whole units and the quantiser are the noise)."""
+    from faceanim.capture.headframe import landmark_names
+    from faceanim.capture.metric import canonical_face
+    from faceanim.motion import Motion
+    from faceanim.mpeg4 import Fapu
+    from faceanim.mpeg4.fapfile import write_fap
+    from faceanim.speaker import build_model, mobile_names, write_speaker
+
+    rng = np.random.default_rng(0)
+    neutral = canonical_face().vertices
+    names = landmark_names(len(neutral))
+    fapu = Fapu(irisd0=1.0, es0=6.4, ens0=4.4, mns0=2.0, mw0=5.2)
+    index = np.array([names.index(n) for n in mobile_names(Motion(names, neutral, np.zeros((1, len(names), 3)),
+                                                                   np.eye(4)[None], 25.0, fapu))])
+    vectors = rng.normal(scale=0.1, size=(6, len(index), 3))
+    vectors[0, :, 1] -= 0.2
+    parameters = rng.normal(size=(200, 6))
+    parameters[:, 0] = np.abs(parameters[:, 0])
+    d = np.zeros((200, len(names), 3))
+    d[:, index] = np.einsum("tk,kpc->tpc", parameters, vectors)
+    model = build_model(Motion(names, neutral, d, np.tile(np.eye(4), (200, 1, 1)), 25.0, fapu), parameters=6)
+    write_speaker(tmp_path / "s.npz", model)
+    truth = model.to_faps(parameters[:100] * 3, fps=25.0)
+    write_fap(tmp_path / "speech.fap", truth)
+    truth = read_fap(tmp_path / "speech.fap")  # in whole units, as the coder sees it
+    assert run_cli(capsys, "fap-compress", tmp_path / "speech.fap", "-o", tmp_path / "s.fba", "--faps",
+                   "3,14,16,17,51-54")[0] == 0
+    code, out, err = run_cli(capsys, "fap-decompress", tmp_path / "s.fba", "-o", tmp_path / "out.fap", "--speaker",
+                             tmp_path / "s.npz")
+    assert code == 0 and "interpreted through" in out, err
+    back = read_fap(tmp_path / "out.fap")
+    assert back.mask[:, model.fap_columns].all()
+    assert fap_psnr(truth, back) > 25

@@ -46,6 +46,8 @@ JOBS = {
     "aus": ("faceanim.expressions", "aus"),
     "plot": ("faceanim.export.plots", "plot"),
     "batch": ("faceanim.dataset", "run_batch"),
+    "fap_compress": ("faceanim.compression", "fap_compress"),
+    "fap_decompress": ("faceanim.compression", "fap_decompress"),
     "build_speaker": ("faceanim.speech", "build_speaker"),
     "analyse_speech": ("faceanim.speech", "analyse_speech"),
 }  # no job shares its name with a module of the package (``faceanim.demo`` is the module; its job is run_demo)

@@ -225,6 +225,26 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--address", metavar="ray://HOST:PORT|auto", help="run on this Ray cluster instead")
     p.add_argument("--force", action="store_true", help="make outputs again even where they are already there")
 
+    p = commands.add_parser("fap-compress", help="code a .fap into a compact FAP stream (.fba)",
+                            description="Code the FAPs of IN.fap with MPEG-4's low-delay scheme (steps QP x quant, "
+                                        "an intra frame, then differences from the decoder's reconstruction, "
+                                        "adaptive arithmetic coding) into faceanim's .fba container; prints the "
+                                        "size, the rate at the file's frame rate and the FAP PSNR against the input.")
+    p.add_argument("source", metavar="IN.fap")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.fba")
+    p.add_argument("--quant", type=float, default=1.0, metavar="Q",
+                   help="scale of the quantiser steps QP x Q (default 1; larger is coarser and smaller)")
+    p.add_argument("--faps", metavar="LIST", help="the FAPs to send, like 3,14,16,17,51-54 (default: all the file "
+                                                  "carries, 3-68)")
+
+    p = commands.add_parser("fap-decompress", help="decode a .fba back into a .fap",
+                            description="Decode IN.fba (faceanim fap-compress) into a .fap; with --speaker, the "
+                                        "FAPs are interpreted through a speaker model (regularised, the FAPs not "
+                                        "sent filled in).")
+    p.add_argument("source", metavar="IN.fba")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.fap")
+    p.add_argument("--speaker", metavar="SPEAKER.npz", help="a speaker model (faceanim speaker build)")
+
     p = commands.add_parser("fap-info", help="summarise a .fap file",
                             description="Frames, fps, active FAPs with their ranges, and values outside MPEG-4's.")
     p.add_argument("fap", metavar="FILE.fap")
@@ -413,6 +433,18 @@ def _run(args, progress) -> str:
         return f"wrote {args.output}: {len(values)} frames, {len(numbers)} action units"
     if args.command == "fap-info":
         return pipeline.fap_info(args.fap)
+    if args.command == "fap-compress":
+        from .compression import fap_compress
+
+        result = fap_compress(args.source, args.output, quant=args.quant, faps=args.faps)
+        return f"wrote {args.output}: {result.summary()}"
+    if args.command == "fap-decompress":
+        from .compression import fap_decompress
+
+        stream = fap_decompress(args.source, args.output, speaker=args.speaker)
+        active = int(stream.mask.any(axis=0).sum())
+        return f"wrote {args.output}: {len(stream)} frames, {active} FAPs" + (
+            f", interpreted through {args.speaker}" if args.speaker else "")
     if args.command == "batch":
         from .dataset import run_batch
 

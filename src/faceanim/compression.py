@@ -1,0 +1,146 @@
+"""The FAP coding jobs: ``faceanim fap-compress`` (a ``.fap`` into faceanim's coded ``.fba``) and
+``faceanim fap-decompress`` (back to a ``.fap``, optionally interpreted through a speaker model).
+
+The coder itself is :mod:`faceanim.mpeg4.fapcoder` (its docstring describes the scheme and the
+container). These functions name their inputs, check their outputs before any work and write them
+complete or not at all.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .mpeg4 import FAP_COUNT
+from .mpeg4.fapstream import FapStream
+from .outputs import check_outputs
+
+__all__ = ["CompressionResult", "fap_compress", "fap_decompress", "parse_fap_list"]
+
+
+@dataclass(frozen=True)
+class CompressionResult:
+    """What ``fap_compress`` wrote: ``size`` bytes for ``frames`` frames at ``fps``, sending ``faps``
+    (1-based numbers) at quantiser scale ``quant``; ``psnr`` is the FAP PSNR of the decoded stream against
+    the input in dB (:func:`faceanim.mpeg4.fapcoder.fap_psnr`)."""
+
+    size: int
+    frames: int
+    fps: float
+    faps: tuple[int, ...]
+    quant: float
+    psnr: float
+
+    @property
+    def kbits_per_second(self) -> float:
+        """The rate at the stream's frame rate, in kbit/s (1000 bits), the whole file counted."""
+        return self.size * 8 / (self.frames / self.fps) / 1000
+
+    def summary(self) -> str:
+        return (f"{self.size} bytes, {self.frames} frames, {self.kbits_per_second:.2f} kbit/s at {self.fps:g} fps, "
+                f"FAP PSNR {self.psnr:.1f} dB over {len(self.faps)} FAPs (quant {self.quant:g})")
+
+
+def parse_fap_list(text: str) -> tuple[int, ...]:
+    """``"3,14,16,17,51-54"`` as sorted FAP numbers; InputError (naming ``--faps``) for anything else.
+
+    >>> parse_fap_list("3, 51-54,14")
+    (3, 14, 51, 52, 53, 54)
+    >>> parse_fap_list("5-3")
+    Traceback (most recent call last):
+    ...
+    faceanim.errors.InputError: --faps 5-3: '5-3' is a range that ends before it starts
+    """
+    numbers: set[int] = set()
+    items = [item.strip() for item in str(text).split(",")]
+    for item in items:
+        ends = item.split("-")
+        if not item or len(ends) > 2 or not all(e.strip().isdigit() for e in ends):
+            raise InputError(f"--faps {text}: {item!r} is not a FAP number or a range like 51-54")
+        low, high = int(ends[0]), int(ends[-1])
+        if low > high:
+            raise InputError(f"--faps {text}: {item!r} is a range that ends before it starts")
+        for number in (low, high):
+            if not 3 <= number <= FAP_COUNT:
+                why = " (1 and 2, visemes and expressions, are not coded)" if number in (1, 2) else ""
+                raise InputError(f"--faps {text}: FAP {number} is not one from 3 to {FAP_COUNT}{why}")
+        numbers.update(range(low, high + 1))
+    return tuple(sorted(numbers))
+
+
+def _quant(quant) -> float:
+    try:
+        value = float(quant)
+    except (TypeError, ValueError):
+        raise InputError(f"--quant {quant}: is not a number") from None
+    if not np.isfinite(value) or value <= 0:
+        raise InputError(f"--quant {quant}: must be a positive number (the scale of the steps QP x quant)")
+    return value
+
+
+def fap_compress(source, output, *, quant: float = 1.0, faps=None) -> CompressionResult:
+    """``faceanim fap-compress``: code the ``.fap`` at ``source`` into the ``.fba`` at ``output``.
+
+    Parameters
+    ----------
+    quant : float
+        Scale of the quantiser steps ``QP x quant``; positive.
+    faps : str or sequence of int, optional
+        The FAPs to send (``"3,14,16,17,51-54"`` or numbers 3-68); default every low-level FAP the file carries.
+
+    Returns
+    -------
+    CompressionResult
+        Size, rate, and the PSNR of the decoded stream against the input over the sent FAPs.
+    """
+    from .atomic import atomic_output
+    from .mpeg4.fapcoder import decode_faps, encode_faps, fap_psnr
+    from .mpeg4.fapfile import read_fap
+
+    output = Path(output)
+    quant = _quant(quant)
+    if isinstance(faps, str):
+        faps = parse_fap_list(faps)
+    check_outputs({"-o": (output, ".fba")}, inputs={"IN.fap": source})
+    stream = read_fap(source)
+    try:
+        data = encode_faps(stream, quant=quant, faps=faps)
+    except ValueError as exc:  # a setting this stream cannot be coded with (a FAP list, a quant too fine)
+        raise InputError(f"{source}: {exc}") from None
+    decoded = decode_faps(data, source=str(output))
+    sent = tuple(int(c) + 1 for c in np.flatnonzero(decoded.mask.any(axis=0)))
+    carried = [n for n in sent if stream.mask[:, n - 1].any()]
+    psnr = fap_psnr(stream, decoded, faps=carried) if carried else float("nan")
+    with atomic_output(output) as tmp:
+        tmp.write_bytes(data)
+    return CompressionResult(size=len(data), frames=len(stream), fps=stream.fps, faps=sent, quant=quant, psnr=psnr)
+
+
+def fap_decompress(source, output, *, speaker=None) -> FapStream:
+    """``faceanim fap-decompress``: decode the ``.fba`` at ``source`` into the ``.fap`` at ``output``;
+    with ``speaker`` (a model file from ``faceanim speaker build``), the decoded FAPs are interpreted
+    through it first (:meth:`~faceanim.speaker.SpeakerModel.regularise`: the model's FAPs regenerated
+    from the parameters that best explain those received, filled in where they were not sent).
+
+    Returns the stream written (values as the ``.fap`` holds them before rounding to whole units).
+    """
+    from .mpeg4.fapcoder import read_fba
+    from .mpeg4.fapfile import write_fap
+
+    output = Path(output)
+    check_outputs({"-o": (output, ".fap")}, inputs={"IN.fba": source, "--speaker": speaker})
+    model = None
+    if speaker is not None:  # read first: a bad model file is found before the stream is decoded
+        from .speaker import read_speaker
+
+        model = read_speaker(speaker)
+    stream = read_fba(source)
+    if model is not None:
+        stream = model.regularise(stream)
+    if round(stream.fps) < 1:
+        raise InputError(f"{source}: {stream.fps:g} fps cannot be written as a .fap (whole frame rates from 1)")
+    write_fap(output, stream)
+    return stream
