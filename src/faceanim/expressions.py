@@ -220,10 +220,9 @@ def aus(video, output, *, neutral=None, smoothing=True, progress=None):
     :mod:`faceanim.export.curves`), timed by the video's own presentation times. Returns ``(AU numbers,
     (T, A) intensities on the 0-1 scale)`` (the CSV's ``AU*_r`` are these times 5, at most 5)."""
     from .capture.smoothing import OneEuro, one_euro
-    from .capture.track import Track, track_video
     from .export.curves import openface_pose, write_au_csv
     from .generic import landmark_target
-    from .inputs import _check_neutral_image, motion_of_track
+    from .inputs import captured_source
     from .motion import _rotation_part
     from .outputs import check_outputs
     from .progress import as_progress
@@ -232,12 +231,9 @@ def aus(video, output, *, neutral=None, smoothing=True, progress=None):
 
     output = Path(output)
     check_outputs({"-o": (output, ".csv")}, inputs={"VIDEO": video, "--neutral": neutral})
-    if neutral is not None:
-        _check_neutral_image(neutral)  # before the video is tracked, not after
-    source = Path(video)
-    recorded = (Track.load(source) if source.suffix.lower() == ".npz"
-                else track_video(source, progress=as_progress(progress)))
-    motion = motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
+    recorded = captured_source(video, neutral=neutral, smoothing=smoothing, progress=as_progress(progress),
+                               folder=output.parent)  # the landmarks on disk: memory flat in length
+    motion = recorded.motion
     face = MuscleFace(landmark_target(motion.neutral[:468]))
     fitter = AuFitter(face, motion.names[:468])
     values = fitter.read_motion(motion)

@@ -10,7 +10,7 @@ from pathlib import Path
 from .errors import InputError
 from .geometry import read_mesh
 
-__all__ = ["load_target", "capture_motion", "motion_of_track", "target_unit"]
+__all__ = ["load_target", "capture_motion", "captured_source", "motion_of_track", "target_unit"]
 
 
 def load_target(mesh_path=None, *, points=None, fdp=None, progress=None):
@@ -63,8 +63,9 @@ def _check_extent(mesh, path) -> None:
 
 
 def capture_motion(source, *, neutral=None, smoothing=True, progress=None):
-    """The Motion of a video (or of a saved ``.npz`` track). ``neutral``: ``FRAME``, ``START:END`` or
-    an image of the same face at rest; found automatically when None."""
+    """The Motion of a video (or of a saved ``.npz`` track), held in memory. ``neutral``: ``FRAME``,
+    ``START:END`` or an image of the same face at rest; found automatically when None. (The jobs
+    stream a long video through :func:`captured_source` instead.)"""
     from .capture.track import Track, track_video
     from .progress import as_progress
 
@@ -73,12 +74,53 @@ def capture_motion(source, *, neutral=None, smoothing=True, progress=None):
         _check_neutral_image(neutral)  # before the video is tracked, not after
     recorded = (Track.load(source) if source.suffix.lower() == ".npz"
                 else track_video(source, progress=as_progress(progress)))
-    gaps = recorded.gaps()
+    _report_gaps(source, recorded.gaps())
+    return motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
+
+
+def captured_source(source, *, neutral=None, smoothing=True, progress=None, folder=None):
+    """The streamed :class:`~faceanim.capture.stream.Capture` of a video (or of a saved ``.npz``
+    track): :func:`capture_motion`'s motion with the landmarks kept in unnamed temporary files in
+    ``folder`` (the job's output folder), so that memory does not grow with the video's length."""
+    from .capture.smoothing import OneEuro
+    from .capture.stream import captured
+    from .capture.track import Track
+    from .progress import as_progress
+
+    source = Path(source)
+    if neutral is not None:
+        _check_neutral_image(neutral)  # before the video is tracked, not after
+    given = Track.load(source) if source.suffix.lower() == ".npz" else source
+    capture = captured(given, smoothing=OneEuro() if smoothing else None, progress=as_progress(progress),
+                       folder=folder, **_neutral_choice(neutral, given))
+    _report_gaps(source, capture.gaps())
+    return capture
+
+
+def _neutral_choice(neutral, given) -> dict:
+    """``--neutral`` as :func:`~faceanim.capture.stream.captured` takes it: a frame window (checked
+    against the track's length once it is known), or the head-frame points of an image."""
+    from .capture.headframe import head_frame
+    from .capture.neutral import parse_neutral
+    from .capture.track import Track, track_video
+    from .capture.tracker import TrackerOptions
+
+    if neutral is None:
+        return {}
+    choice = parse_neutral(str(neutral), len(given) if isinstance(given, Track) else 2**62)
+    if isinstance(choice, tuple):
+        return {"neutral": choice}  # a video's length is known once tracked: captured checks the window then
+    still = track_video(choice, options=TrackerOptions(static=True), progress=False)
+    points, _ = head_frame(still)
+    return {"neutral_points": points[0]}
+
+
+def _report_gaps(source, gaps) -> None:
+    """Say on stderr which stretches of the video have no face (they carry no FAPs)."""
     if gaps:
         frames = sum(b - a + 1 for a, b in gaps)
         print(f"faceanim: {source}: {frames} frames in {len(gaps)} stretches have no face "
               f"(first: frames {gaps[0][0]}-{gaps[0][1]}); they carry no FAPs", file=sys.stderr)
-    return motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
 
 
 def _check_neutral_image(neutral) -> None:

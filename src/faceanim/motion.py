@@ -10,7 +10,8 @@ the face), rigid head motion removed and kept apart as a pose per frame.
 from __future__ import annotations
 
 import numbers
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -18,7 +19,7 @@ from .mpeg4 import ANGLE_UNIT, FAP_COUNT, Fapu, fap_table
 from .mpeg4.fapstream import FapStream, fap_ranges
 from .mpeg4.fapu import HUMAN_ES0
 from .mpeg4.jaw import JAW_CARRIED, jaw_hinge, jaw_swing
-from .validation import as_array, restore_frozen
+from .validation import as_array
 
 __all__ = ["Motion", "motion_to_faps", "clip_to_range", "head_angles", "relative_head_rotations", "EYEBALL_RADIUS_ES0"]
 
@@ -27,7 +28,12 @@ __all__ = ["Motion", "motion_to_faps", "clip_to_range", "head_angles", "relative
 EYEBALL_RADIUS_ES0 = 0.012 / HUMAN_ES0
 
 
-@dataclass(frozen=True, eq=False)
+FrameSource = Callable[[int, int], np.ndarray]
+"""``frames(start, stop)`` -> displacements ``(stop - start, K, 3)`` of frames ``start .. stop - 1``."""
+
+CHUNK = 512  # frames read at once from a streamed motion: a few MB with MediaPipe's 478 points
+
+
 class Motion:
     """Named control points moving over time; immutable (read-only arrays) and checked on construction.
 
@@ -49,6 +55,11 @@ class Motion:
     Positions and displacements are in the model units of the face they were measured on (the unit
     of ``fapu``; centimetres for a tracked video).
 
+    ``Motion(...)`` holds the displacements given (read-only); :meth:`streamed` reads them on demand
+    from a :data:`FrameSource` (a capture's frames kept on disk), so that a long video's motion
+    costs one chunk of memory. Consumers read them with :meth:`chunk` or :meth:`chunks`;
+    :attr:`displacements` makes them all at once (``T x K x 24`` bytes).
+
     Raises
     ------
     ValueError
@@ -58,44 +69,110 @@ class Motion:
         A name that is not a string, or ``fapu`` not a Fapu.
     """
 
-    names: tuple[str, ...]
-    neutral: np.ndarray
-    displacements: np.ndarray
-    pose: np.ndarray
-    fps: float
-    fapu: Fapu
-    valid: np.ndarray | None = None
+    __slots__ = ("names", "neutral", "pose", "fps", "fapu", "valid", "_held", "_source")
 
-    def __post_init__(self):
-        names = tuple(self.names)
+    def __init__(self, names, neutral, displacements, pose, fps, fapu, valid=None):
+        names = tuple(names)
+        d = as_array(displacements, "displacements", shape=("T", len(names), 3), finite=False, frozen=True)
+        valid = np.ones(len(d), bool) if valid is None else valid
+        self._init(names, neutral, pose, fps, fapu, valid, d, None)
+        for start in range(0, len(d), 1024):  # by blocks: d[valid] would copy a long video's motion
+            broken = self.valid[start:start + 1024] & ~np.isfinite(d[start:start + 1024]).all(axis=(1, 2))
+            if broken.any():
+                raise ValueError(f"displacements must be finite on valid frames, got NaN or infinity on frame "
+                                 f"{start + int(np.argmax(broken))}")
+
+    @classmethod
+    def streamed(cls, names, neutral, frames: FrameSource, pose, fps, fapu, valid=None) -> Motion:
+        """A motion whose displacements ``frames(start, stop)`` makes when read; its length is the pose's.
+        (Each chunk is checked as it is read: finite on valid frames, of the right shape.)"""
+        if not callable(frames):
+            raise TypeError(f"frames must be a function (start, stop) -> displacements, got {type(frames).__name__}")
+        motion = cls.__new__(cls)
+        length = len(np.asarray(pose))
+        motion._init(tuple(names), neutral, pose, fps, fapu, np.ones(length, bool) if valid is None else valid,
+                     None, frames)
+        return motion
+
+    def _init(self, names, neutral, pose, fps, fapu, valid, held, source) -> None:
         if not all(isinstance(n, str) for n in names):
             raise TypeError(f"names must be strings, got {next(n for n in names if not isinstance(n, str))!r}")
         if len(set(names)) != len(names):
             raise ValueError("control point names must be distinct")
-        if not isinstance(self.fapu, Fapu):
-            raise TypeError(f"fapu must be a Fapu, got {type(self.fapu).__name__}")
-        neutral = as_array(self.neutral, "neutral", shape=(len(names), 3), frozen=True)
-        d = as_array(self.displacements, "displacements", shape=("T", len(names), 3), finite=False, frozen=True)
-        pose = as_array(self.pose, "pose", shape=(len(d), 4, 4), frozen=True)
-        valid = np.ones(len(d), bool) if self.valid is None else self.valid
-        valid = as_array(valid, "valid", shape=(len(d),), dtype=bool, frozen=True)
-        for start in range(0, len(d), 1024):  # by blocks: d[valid] would copy a long video's motion
-            broken = valid[start:start + 1024] & ~np.isfinite(d[start:start + 1024]).all(axis=(1, 2))
-            if broken.any():
-                raise ValueError(f"displacements must be finite on valid frames, got NaN or infinity on frame "
-                                 f"{start + int(np.argmax(broken))}")
-        if isinstance(self.fps, bool) or not isinstance(self.fps, numbers.Real) or not (
-                np.isfinite(self.fps) and self.fps > 0):
-            raise ValueError(f"fps must be a positive number, got {self.fps!r}")
-        for field, value in (("names", names), ("neutral", neutral), ("displacements", d), ("pose", pose),
-                             ("valid", valid), ("fps", float(self.fps))):
+        if not isinstance(fapu, Fapu):
+            raise TypeError(f"fapu must be a Fapu, got {type(fapu).__name__}")
+        neutral = as_array(neutral, "neutral", shape=(len(names), 3), frozen=True)
+        pose = as_array(pose, "pose", shape=("T" if held is None else len(held), 4, 4), frozen=True)
+        if not len(pose):
+            raise ValueError("a motion needs at least one frame")
+        valid = as_array(valid, "valid", shape=(len(pose),), dtype=bool, frozen=True)
+        if isinstance(fps, bool) or not isinstance(fps, numbers.Real) or not (np.isfinite(fps) and fps > 0):
+            raise ValueError(f"fps must be a positive number, got {fps!r}")
+        for field, value in (("names", names), ("neutral", neutral), ("pose", pose), ("fps", float(fps)),
+                             ("fapu", fapu), ("valid", valid), ("_held", held), ("_source", source)):
             object.__setattr__(self, field, value)
 
-    def __setstate__(self, state):
-        restore_frozen(self, state)
+    def __setattr__(self, name, value):
+        raise AttributeError(f"a Motion is immutable; {name} cannot be set")
+
+    def __reduce__(self):
+        if self._held is None:
+            raise TypeError("a streamed Motion reads its frames from an open file and cannot be pickled; "
+                            "pickle Motion(m.names, m.neutral, m.displacements, ...) instead")
+        return (Motion, (self.names, self.neutral, self._held, self.pose, self.fps, self.fapu, self.valid))
+
+    def __repr__(self) -> str:
+        kind = "streamed" if self._held is None else "held"
+        return f"Motion({len(self)} frames, {len(self.names)} points, {self.fps:g} fps, {kind})"
 
     def __len__(self) -> int:
-        return len(self.displacements)
+        return len(self.pose)
+
+    @property
+    def is_streamed(self) -> bool:
+        """True when the displacements are read on demand rather than held."""
+        return self._held is None
+
+    def chunk(self, start: int, stop: int) -> np.ndarray:
+        """Displacements ``(stop - start, K, 3)`` of frames ``start .. stop - 1`` (read-only when held)."""
+        if not 0 <= start < stop <= len(self):
+            raise IndexError(f"frames {start}:{stop} are outside the motion's 0:{len(self)}")
+        if self._held is not None:
+            return self._held[start:stop]
+        made = np.asarray(self._source(start, stop), dtype=np.float64)
+        if made.shape != (stop - start, len(self.names), 3):
+            raise ValueError(f"the frame source made shape {made.shape} for frames {start}:{stop}, expected "
+                             f"{(stop - start, len(self.names), 3)}")
+        broken = self.valid[start:stop] & ~np.isfinite(made).all(axis=(1, 2))
+        if broken.any():
+            raise ValueError(f"displacements must be finite on valid frames, got NaN or infinity on frame "
+                             f"{start + int(np.argmax(broken))}")
+        return made
+
+    def chunks(self, size: int = CHUNK):
+        """``(start, displacements)`` in runs of ``size`` frames (the last may be shorter), first to last."""
+        for start in range(0, len(self), int(size)):
+            yield start, self.chunk(start, min(start + int(size), len(self)))
+
+    @property
+    def displacements(self) -> np.ndarray:
+        """All displacements ``(T, K, 3)``, read-only; a streamed motion reads them all, every time asked."""
+        if self._held is not None:
+            return self._held
+        whole = np.concatenate([d for _, d in self.chunks()])
+        whole.flags.writeable = False
+        return whole
+
+    def points_over_time(self, names) -> np.ndarray:
+        """Displacements ``(T, k, 3)`` of the named points only, read chunk by chunk (what a consumer
+        of a few points of a long streamed motion holds)."""
+        at = self.index(names)
+        if self._held is not None:
+            return self._held[:, at]
+        out = np.empty((len(self), len(at), 3))
+        for start, d in self.chunks():
+            out[start:start + len(d)] = d[:, at]
+        return out
 
     def index(self, names) -> np.ndarray:
         """Positions of the named points; a missing name raises ``KeyError`` naming it."""
@@ -163,12 +240,15 @@ def motion_to_faps(motion: Motion, *, name: str = "faceanim") -> FapStream:
     units = motion.fapu.scale()
     lookup = {n: i for i, n in enumerate(motion.names)}
     opening = table.number("open_jaw") - 1
-    swing = _jaw_swing_seen(motion, table.direction[opening]) if "2.1" in lookup else None
-    for j in range(2, FAP_COUNT):
+    measured = [j for j in range(2, FAP_COUNT) if len(table.feature_points[j]) == 1
+                and table.feature_points[j][0] in lookup and table.direction[j].any()]
+    # Only the points a FAP reads, chunk by chunk: a streamed capture's other points stay on disk.
+    wanted = sorted({table.feature_points[j][0] for j in measured} | ({"2.1", "3.5", "3.6"} & lookup.keys()))
+    seen = dict(zip(wanted, np.moveaxis(motion.points_over_time(wanted), 1, 0), strict=True))
+    swing = _jaw_swing_seen(motion, seen["2.1"], table.direction[opening]) if "2.1" in lookup else None
+    for j in measured:
         points = table.feature_points[j]
-        if len(points) != 1 or points[0] not in lookup or not table.direction[j].any():
-            continue
-        d = motion.displacements[:, lookup[points[0]]]
+        d = seen[points[0]]
         if swing is not None and (points[0] in JAW_CARRIED or (points[0] == "2.1" and j != opening)):
             d = d - swing(motion.neutral[lookup[points[0]]])  # a player swings these with open_jaw first
         values[:, j] = d @ table.direction[j] / units[j]
@@ -176,7 +256,7 @@ def motion_to_faps(motion: Motion, *, name: str = "faceanim") -> FapStream:
     eyes = {"l": ("3.5", "yaw_l_eyeball", "pitch_l_eyeball"), "r": ("3.6", "yaw_r_eyeball", "pitch_r_eyeball")}
     for pupil, yaw_name, pitch_name in eyes.values():
         if pupil in lookup:
-            shift = motion.displacements[:, lookup[pupil]] / (EYEBALL_RADIUS_ES0 * motion.fapu.es0)
+            shift = seen[pupil] / (EYEBALL_RADIUS_ES0 * motion.fapu.es0)
             for fap, component, sign in ((yaw_name, 0, 1.0), (pitch_name, 1, -1.0)):
                 j = table.number(fap) - 1
                 values[:, j] = sign * np.arcsin(np.clip(shift[:, component], -1, 1)) / ANGLE_UNIT
@@ -193,12 +273,12 @@ def motion_to_faps(motion: Motion, *, name: str = "faceanim") -> FapStream:
     return FapStream(values, mask, motion.fps, name=name)
 
 
-def _jaw_swing_seen(motion: Motion, down: np.ndarray):
+def _jaw_swing_seen(motion: Motion, chin: np.ndarray, down: np.ndarray):
     """The jaw swing (:func:`.mpeg4.jaw.jaw_swing`) a player makes for the chin's drop along ``down`` on
-    each frame, about the hinge of the motion's own neutral face. open_jaw cannot be negative, so a
-    chin above rest makes no swing."""
+    each frame (``chin (T, 3)``, the displacements of point 2.1), about the hinge of the motion's own
+    neutral face. open_jaw cannot be negative, so a chin above rest makes no swing."""
     at = dict(zip(motion.names, motion.neutral, strict=True))
-    drop = np.maximum(np.nan_to_num(motion.displacements[:, motion.names.index("2.1")] @ down), 0.0)
+    drop = np.maximum(np.nan_to_num(chin @ down), 0.0)
     return jaw_swing(jaw_hinge(at, motion.fapu), at["2.1"], drop)
 
 

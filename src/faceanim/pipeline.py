@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import warnings
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
@@ -13,7 +12,7 @@ from .errors import FileFormatError, InputError
 from .expressions import aus, express  # the expression jobs live in their own module; re-exported here
 from .geometry import read_mesh, write_mesh
 from .geometry.animation import spilled
-from .inputs import capture_motion, load_target, motion_of_track, target_unit
+from .inputs import capture_motion, captured_source, load_target, motion_of_track, target_unit  # noqa: F401 (re-exported)
 from .jsonfile import read_json
 from .outputs import SEQUENCE_FOLDER, check_outputs
 from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
@@ -167,8 +166,10 @@ def encode(source, output, *, neutral=None, smoothing=True, progress=None):
 
     output = Path(output)
     check_outputs({"-o": (output, ".fap")}, inputs={"VIDEO_OR_TRACK": source, "--neutral": neutral})
-    motion = capture_motion(source, neutral=neutral, smoothing=smoothing, progress=progress)
-    stream, clipped = clip_to_range(motion_to_faps(motion, name=Path(source).stem.replace(" ", "_") or "faceanim"))
+    capture = captured_source(source, neutral=neutral, smoothing=smoothing, progress=progress,
+                              folder=output.parent)  # the landmarks on disk: memory flat in length
+    stream, clipped = clip_to_range(motion_to_faps(capture.motion,
+                                                   name=Path(source).stem.replace(" ", "_") or "faceanim"))
     write_fap(output, stream)
     return stream, clipped
 
@@ -215,13 +216,6 @@ def avatar(photo, output):
     target = avatar_target(photo)
     write_glb(output, target.mesh, extras={"points": dict(target.points)}, metres_per_unit=metres_per_unit(target.fapu))
     return target
-
-
-class _Timing(NamedTuple):
-    """What the ``--csv`` curves need of a Track: its frames' presentation times and which had a face."""
-
-    times: np.ndarray
-    valid: np.ndarray
 
 
 def _write_extra_outputs(animation, stream, obj_sequence, csv, progress, recorded=None) -> None:
@@ -344,10 +338,8 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None).
     Returns ``(animation, stream)``: the streamed :class:`~faceanim.geometry.animation.Animation`
     (reading its frames deforms them again) and the FAPs."""
-    from .capture.headframe import head_frame
     from .capture.neutral import parse_neutral
     from .capture.overlay import overlay_frames
-    from .capture.track import track_video
     from .motion import clip_to_range, motion_to_faps
     from .mpeg4.fapfile import write_fap
     from .progress import as_progress
@@ -364,10 +356,10 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
         raise InputError("animate takes the neutral as FRAME or START:END")  # said before any work is done
     shown = as_progress(progress)
     target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
-    recorded = track_video(video, progress=shown)
-    motion = motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
-    if preview is None:  # the landmarks are read again only to draw the preview's overlay: let them go
-        recorded = _Timing(recorded.times, recorded.valid)
+    # The landmarks and the motion stay in unnamed temporary files beside the output (freed with the
+    # animation returned): memory does not grow with the video's length.
+    capture = captured_source(video, neutral=neutral, smoothing=smoothing, progress=shown, folder=output.parent)
+    motion = capture.motion
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
     if via == "motion" and len(shared_points(motion, target)) < MINIMUM_SHARED_POINTS:
         warnings.warn(f"the target shares only {len(shared_points(motion, target))} control points with the tracker; "
@@ -382,12 +374,11 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     with spilled(animation, folder=output.parent, progress=shown) as kept:  # deformed once, read by each output
         shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
         _write_glb(output, kept, unit)
-        _write_extra_outputs(kept, stream, obj_sequence, csv, shown, recorded)
+        _write_extra_outputs(kept, stream, obj_sequence, csv, shown, capture)
         if fap is not None:
             write_fap(fap, stream)
         if preview is not None:
-            _, pose = head_frame(recorded)
-            _preview(preview, kept, target, shown, source_frames=overlay_frames(recorded, pose))
+            _preview(preview, kept, target, shown, source_frames=overlay_frames(capture, motion.pose))
     return animation, stream
 
 

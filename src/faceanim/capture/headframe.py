@@ -12,10 +12,11 @@ from .jaw import correct_jaw_depth
 from .landmarks import FEATURE_POINT_LANDMARK
 from .metric import canonical_face, metric_geometry_frames
 from .neutral import relaxed_window
-from .smoothing import OneEuro, one_euro
+from .smoothing import OneEuro, OneEuroFilter
 from .track import Track
 
-__all__ = ["head_frame", "track_to_motion", "landmark_names", "restabilise", "DEFAULT_SMOOTHING"]
+__all__ = ["head_frame", "head_frame_into", "settle", "displacements_from", "mouth_gap", "track_to_motion",
+           "landmark_names", "restabilise", "DEFAULT_SMOOTHING"]
 
 DEFAULT_SMOOTHING = OneEuro()
 
@@ -72,26 +73,111 @@ def restabilise(points: np.ndarray, pose: np.ndarray, rest: np.ndarray, usable: 
     face at rest: a person's expression changes how it fits. Fitted to the person's own neutral, the
     skull's points stay put and only expression remains.
     """
-    return _restabilise_in_place(points.copy(), pose.copy(), rest, usable)
-
-
-def _restabilise_in_place(points: np.ndarray, pose: np.ndarray, rest: np.ndarray, usable: np.ndarray):
-    """:func:`restabilise`, writing into ``points`` and ``pose`` (a capture's own arrays, so that a long
-    video's landmarks are not held twice)."""
-    usable_frames = np.flatnonzero(usable)
-    weights = _skull_weights()
-    for start in range(0, len(usable_frames), _BLOCK):  # temporaries bounded by a block, not the video
-        frames = usable_frames[start:start + _BLOCK]
-        to_frame = batch_procrustes(rest[:468], points[frames, :468], weights)
-        back = np.linalg.inv(to_frame)
-        points[frames] = np.einsum("tij,tlj->tli", back[:, :3, :3], points[frames]) + back[:, None, :3, 3]
-        pose[frames] = pose[frames] @ to_frame
+    points, pose = np.array(points, dtype=np.float64), np.array(pose, dtype=np.float64)
+    _restabilise_in_place(points, pose, rest, usable)
     return points, pose
+
+
+def _restabilise_in_place(points, pose: np.ndarray, rest: np.ndarray, usable: np.ndarray) -> None:
+    """:func:`restabilise`, writing into ``points`` (an array or a :class:`~faceanim.framestore.FrameStore`,
+    read and rewritten a block at a time) and ``pose``."""
+    weights = _skull_weights()
+    for start in range(0, len(points), _BLOCK):  # temporaries bounded by a block, not the video
+        stop = min(start + _BLOCK, len(points))
+        frames = start + np.flatnonzero(usable[start:stop])
+        if not frames.size:
+            continue
+        block = points[start:stop]
+        moved = block[frames - start]
+        to_frame = batch_procrustes(rest[:468], moved[:, :468], weights)
+        back = np.linalg.inv(to_frame)
+        block[frames - start] = np.einsum("tij,tlj->tli", back[:, :3, :3], moved) + back[:, None, :3, 3]
+        points[start:stop] = block
+        pose[frames] = pose[frames] @ to_frame
+
+
+def head_frame_into(landmarks, usable: np.ndarray, times: np.ndarray, width: int, height: int, points, pose,
+                    smoothing: OneEuro | None = DEFAULT_SMOOTHING) -> None:
+    """Fill ``points (T, L, 3)`` (an array or a :class:`~faceanim.framestore.FrameStore` of the same
+    length) and ``pose (T, 4, 4)`` with :func:`head_frame` of the normalised ``landmarks`` (an array
+    or a store), filtered by ``smoothing`` as they go, a block of frames at a time: what is held is a
+    block, however long the video."""
+    point_filter = turn_filter = move_filter = None
+    if smoothing is not None:
+        point_filter, move_filter = OneEuroFilter(smoothing), OneEuroFilter(smoothing)
+        turn_filter = OneEuroFilter(OneEuro(smoothing.min_cutoff, 0.0, smoothing.d_cutoff))
+    for start in range(0, len(landmarks), _BLOCK):
+        stop = min(start + _BLOCK, len(landmarks))
+        raw, ok, when = landmarks[start:stop], usable[start:stop], times[start:stop]
+        block = np.full(raw.shape, np.nan)
+        turned = np.tile(np.eye(4), (stop - start, 1, 1))
+        if ok.any():
+            block[ok], turned[ok] = metric_geometry_frames(raw[ok], width, height)
+        if smoothing is not None:
+            point_filter(block, when, out=block)
+            translation = move_filter(turned[:, :3, 3][:, None], when)[:, 0]
+            linear = turn_filter(turned[:, :3, :3], when)
+            turned[ok, :3, 3] = translation[ok]
+            turned[ok, :3, :3] = linear[ok]
+        points[start:stop] = block
+        pose[start:stop] = turned
+
+
+def mouth_gap(points) -> np.ndarray:
+    """``(T,)`` the inner lips' vertical gap (feature points 2.2 and 2.3) of head-frame ``points``
+    (an array or a store, read a block at a time)."""
+    top, bottom = FEATURE_POINT_LANDMARK["2.2"], FEATURE_POINT_LANDMARK["2.3"]
+    gap = np.empty(len(points))
+    for start in range(0, len(points), _BLOCK):
+        block = points[start:start + _BLOCK]
+        gap[start:start + len(block)] = np.abs(block[:, top, 1] - block[:, bottom, 1])
+    return gap
+
+
+def settle(points, pose: np.ndarray, usable: np.ndarray, fps: float, *, neutral=None, neutral_points=None):
+    """Choose the face at rest and refit the head frame to it: ``points`` (head frame, an array or a
+    store) and ``pose`` are rewritten in place (:func:`restabilise`); returns the rest ``(L, 3)`` and
+    its FAPU. ``neutral``, ``(start, end)`` frames, is found by :func:`relaxed_window` when None;
+    ``neutral_points`` measured elsewhere override it.
+
+    Raises
+    ------
+    InputError
+        The neutral frames hold no tracked face, or the neutral gives no usable FAPU.
+    """
+    if neutral_points is not None:
+        rest = np.asarray(neutral_points, dtype=np.float64)
+    else:
+        if neutral is None:
+            neutral = relaxed_window(points, usable, fps, mouth=mouth_gap(points))
+        start, end = neutral
+        chosen = usable[start:end]
+        if not chosen.any():
+            raise InputError(f"the neutral frames {start}:{end} hold no tracked face")
+        rest = points[start:end][chosen].mean(axis=0)
+    _restabilise_in_place(points, pose, rest, usable)
+    if neutral_points is None:
+        rest = points[start:end][chosen].mean(axis=0)
+    names = landmark_names(len(rest))
+    try:
+        fapu = fapu_from_points(dict(zip(names, rest, strict=True)))
+    except ValueError as exc:
+        raise InputError(f"the neutral face gives no usable FAPU ({exc})") from None
+    return rest, fapu
+
+
+def displacements_from(points: np.ndarray, rest: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    """Head-frame ``points (t, L, 3)`` (changed in place) as displacements from ``rest``: NaN on frames
+    without a face, the jaw's points given the depth the chin's drop implies (:func:`.jaw.correct_jaw_depth`)."""
+    points -= rest
+    points[~usable] = np.nan
+    return correct_jaw_depth(rest, points, out=points)
 
 
 def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTHING,
                     neutral_points=None) -> Motion:
-    """The tracked face's motion.
+    """The tracked face's motion, held in memory (a long video streams through
+    :func:`faceanim.capture.stream.captured` instead).
 
     The head frame is refitted to the face's own neutral (:func:`restabilise`), and the depth of the
     points the jaw carries follows the chin's drop (:func:`.jaw.correct_jaw_depth`).
@@ -107,40 +193,13 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
         A neutral measured elsewhere (for example from a separate image), in the head frame;
         overrides ``neutral``.
     """
-    # One (T, L, 3) array, made by head_frame and then changed in place, step by step: a long video's
-    # landmarks are held once here (and once in the track), not once per step.
-    points, pose = head_frame(track)
     usable = track.usable
-    if smoothing is not None:
-        one_euro(points, track.times, smoothing, out=points)
-        translation = one_euro(pose[:, :3, 3][:, None], track.times, smoothing)[:, 0]
-        linear = one_euro(pose[:, :3, :3], track.times, OneEuro(smoothing.min_cutoff, 0.0, smoothing.d_cutoff))
-        pose = pose.copy()
-        pose[usable, :3, 3] = translation[usable]
-        pose[usable, :3, :3] = linear[usable]
-    if neutral_points is not None:
-        rest = np.asarray(neutral_points, dtype=np.float64)
-    else:
-        if neutral is None:
-            mouth = np.abs(points[:, FEATURE_POINT_LANDMARK["2.2"], 1] - points[:, FEATURE_POINT_LANDMARK["2.3"], 1])
-            neutral = relaxed_window(points, usable, track.fps, mouth=mouth)
-        start, end = neutral
-        chosen = usable[start:end]
-        if not chosen.any():
-            raise InputError(f"the neutral frames {start}:{end} hold no tracked face")
-        rest = points[start:end][chosen].mean(axis=0)
-    points, pose = _restabilise_in_place(points, pose.copy(), rest, usable)
-    if neutral_points is None:
-        rest = points[start:end][chosen].mean(axis=0)
-    names = landmark_names(points.shape[1])
-    lookup = {n: rest[i] for i, n in enumerate(names)}
-    try:
-        fapu = fapu_from_points(lookup)
-    except ValueError as exc:
-        raise InputError(f"the neutral face gives no usable FAPU ({exc})") from None
-    displacements = points
-    displacements -= rest
-    displacements[~usable] = np.nan
-    correct_jaw_depth(rest, displacements, out=displacements)
+    # One (T, L, 3) array, made here and then changed in place, step by step: a long video's
+    # landmarks are held once here (and once in the track), not once per step.
+    points = np.empty(track.landmarks.shape)
+    pose = np.empty((len(track), 4, 4))
+    head_frame_into(track.landmarks, usable, track.times, track.width, track.height, points, pose, smoothing)
+    rest, fapu = settle(points, pose, usable, track.fps, neutral=neutral, neutral_points=neutral_points)
+    displacements = displacements_from(points, rest, usable)
     displacements.flags.writeable = False  # handed over: the Motion takes it uncopied
-    return Motion(names, rest, displacements, pose, track.fps, fapu, valid=usable)
+    return Motion(landmark_names(len(rest)), rest, displacements, pose, track.fps, fapu, valid=usable)

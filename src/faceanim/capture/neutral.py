@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..framestore import FrameStore
 
 __all__ = ["relaxed_window", "parse_neutral"]
 
@@ -17,9 +18,10 @@ def relaxed_window(points, usable, fps: float, *, seconds: float = 0.5, mouth=No
 
     Relaxed means: close to the performance's median face (a face spends most of its time near
     rest), still (slow), and, when ``mouth (T,)`` gives the inner-lip gap, with the mouth closed.
-    ``points (T, K, 3)`` in the head frame; ``usable (T,)`` frames with data.
+    ``points (T, K, 3)`` in the head frame (an array, or a :class:`~faceanim.framestore.FrameStore`:
+    it is read a block at a time); ``usable (T,)`` frames with data.
     """
-    p = np.asarray(points, dtype=np.float64)
+    p = points if isinstance(points, FrameStore) else np.asarray(points, dtype=np.float64)
     usable = np.asarray(usable, dtype=bool)
     if not usable.any():
         raise ValueError("no usable frame to choose a neutral from")

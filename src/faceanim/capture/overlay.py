@@ -28,11 +28,11 @@ def _axes_pixels(pose: np.ndarray, width: int, height: int, length: float, camer
 
 def overlay_frames(track: Track, pose: np.ndarray, *, camera: Camera | None = None):
     """Yield every source frame (RGB) with all landmarks (small, grey), the MPEG-4 feature points (larger,
-    yellow) and the head axes drawn; frames without a face say so."""
+    yellow) and the head axes drawn; frames without a face say so. ``track``: a Track, or a streamed
+    :class:`~faceanim.capture.stream.Capture` (its landmarks are read a frame at a time)."""
     from PIL import Image, ImageDraw
 
     camera = camera or Camera()
-    pixels = track.pixels()
     with open_frames(track.source) as source:
         for t, (_, rgb) in enumerate(source):
             if t >= len(track):
@@ -40,9 +40,10 @@ def overlay_frames(track: Track, pose: np.ndarray, *, camera: Camera | None = No
             image = Image.fromarray(rgb)
             draw = ImageDraw.Draw(image)
             if track.usable[t]:
-                for x, y in pixels[t]:
+                pixels = track.landmarks[t][:, :2] * [track.width, track.height]
+                for x, y in pixels:
                     draw.point((x, y), fill=(200, 200, 200))
-                for x, y in pixels[t, _FEATURE_INDICES]:
+                for x, y in pixels[_FEATURE_INDICES]:
                     draw.ellipse((x - 2, y - 2, x + 2, y + 2), fill=(255, 220, 0))
                 o, *tips = _axes_pixels(pose[t], source.width, source.height, 6.0, camera)
                 for tip, colour in zip(tips, ((255, 0, 0), (0, 200, 0), (0, 80, 255)), strict=True):

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["OneEuro", "one_euro", "jitter"]
+__all__ = ["OneEuro", "OneEuroFilter", "one_euro", "jitter"]
 
 
 @dataclass(frozen=True)
@@ -33,6 +33,53 @@ def _alpha(cutoff, dt):
     return 1.0 / (1.0 + tau / dt)
 
 
+class OneEuroFilter:
+    """The One Euro filter run over a signal a block at a time: it carries its state from one block
+    to the next, so a long capture is filtered as it streams, with the result :func:`one_euro` gives
+    for the whole at once.
+
+    >>> t = np.arange(10) / 30.0
+    >>> x = np.random.default_rng(0).normal(size=(10, 4, 3))
+    >>> run = OneEuroFilter()
+    >>> bool(np.array_equal(np.concatenate([run(x[:3], t[:3]), run(x[3:], t[3:])]), one_euro(x, t)))
+    True
+    """
+
+    def __init__(self, settings: OneEuro = OneEuro()):
+        self.settings = settings
+        self._previous = self._derivative = self._last_time = None
+
+    def __call__(self, signal, times, *, out: np.ndarray | None = None) -> np.ndarray:
+        """Filter the next frames ``signal (t, ...)`` at ``times (t,)`` seconds; ``out`` as for :func:`one_euro`."""
+        x = np.asarray(signal, dtype=np.float64)
+        times = np.asarray(times, dtype=np.float64)
+        if out is None:
+            out = np.empty_like(x)
+        elif out.shape != x.shape or out.dtype != np.float64:
+            raise ValueError(f"out must be a float64 array of shape {x.shape}, got {out.dtype} {out.shape}")
+        settings = self.settings
+        previous, derivative, last_time = self._previous, self._derivative, self._last_time
+        for t in range(len(x)):
+            if not np.isfinite(x[t]).all():
+                previous = None
+                out[t] = np.nan
+                continue
+            if previous is None:
+                out[t], previous, derivative = x[t], x[t].copy(), np.zeros_like(x[t])
+                last_time = times[t]
+                continue
+            dt = max(times[t] - last_time, 1e-6)
+            last_time = times[t]
+            a_d = _alpha(settings.d_cutoff, dt)
+            derivative = a_d * (x[t] - previous) / dt + (1 - a_d) * derivative
+            speed = np.linalg.norm(derivative, axis=-1, keepdims=True)
+            a = _alpha(settings.min_cutoff + settings.beta * speed, dt)
+            previous = a * x[t] + (1 - a) * previous
+            out[t] = previous
+        self._previous, self._derivative, self._last_time = previous, derivative, last_time
+        return out
+
+
 def one_euro(signal, times, settings: OneEuro = OneEuro(), *, out: np.ndarray | None = None) -> np.ndarray:
     """Filter ``signal (T, ...)`` sampled at ``times (T,)`` seconds; NaN frames restart the filter
     (and come out all NaN). ``out``, a float64 array of the signal's shape (the signal itself is
@@ -46,31 +93,7 @@ def one_euro(signal, times, settings: OneEuro = OneEuro(), *, out: np.ndarray | 
     >>> bool(np.allclose(one_euro(x, t), 1.0))
     True
     """
-    x = np.asarray(signal, dtype=np.float64)
-    times = np.asarray(times, dtype=np.float64)
-    if out is None:
-        out = np.empty_like(x)
-    elif out.shape != x.shape or out.dtype != np.float64:
-        raise ValueError(f"out must be a float64 array of shape {x.shape}, got {out.dtype} {out.shape}")
-    previous = derivative = None
-    for t in range(len(x)):
-        if not np.isfinite(x[t]).all():
-            previous = None
-            out[t] = np.nan
-            continue
-        if previous is None:
-            out[t], previous, derivative = x[t], x[t], np.zeros_like(x[t])
-            last_time = times[t]
-            continue
-        dt = max(times[t] - last_time, 1e-6)
-        last_time = times[t]
-        a_d = _alpha(settings.d_cutoff, dt)
-        derivative = a_d * (x[t] - previous) / dt + (1 - a_d) * derivative
-        speed = np.linalg.norm(derivative, axis=-1, keepdims=True)
-        a = _alpha(settings.min_cutoff + settings.beta * speed, dt)
-        previous = a * x[t] + (1 - a) * previous
-        out[t] = previous
-    return out
+    return OneEuroFilter(settings)(signal, times, out=out)
 
 
 def jitter(points, fps: float, still) -> float:

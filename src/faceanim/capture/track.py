@@ -6,6 +6,7 @@ import numbers
 import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -15,7 +16,7 @@ from ..validation import as_array, restore_frozen
 from .tracker import TrackerOptions, open_tracker
 from .video import open_frames
 
-__all__ = ["Track", "track_video", "fill_gaps"]
+__all__ = ["Track", "TrackedFrames", "track_video", "track_frames", "fill_gaps", "fill_short_gaps", "gaps_of"]
 
 _MAX_SIZE = 1 << 20  # pixels along a frame's side: far beyond any video, well inside int32
 
@@ -116,9 +117,7 @@ class Track:
 
     def gaps(self) -> list[tuple[int, int]]:
         """``(first, last)`` frame of every run of frames left without landmarks."""
-        missing = np.r_[False, ~self.usable, False].astype(np.int8)
-        edges = np.flatnonzero(np.diff(missing))
-        return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+        return gaps_of(self.usable)
 
     def pixels(self) -> np.ndarray:
         """(T, L, 2) landmark positions in pixels."""
@@ -222,23 +221,37 @@ def _read_npz(path: Path) -> dict:
     return fields
 
 
+def gaps_of(usable: np.ndarray) -> list[tuple[int, int]]:
+    """``(first, last)`` frame of every run of frames that ``usable (T,)`` marks False."""
+    missing = np.r_[False, ~np.asarray(usable, dtype=bool), False].astype(np.int8)
+    edges = np.flatnonzero(np.diff(missing))
+    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
 def fill_gaps(track: Track, max_gap: float = 0.2) -> Track:
     """Fill runs of missing frames no longer than ``max_gap`` seconds by linear interpolation between
     the frames around them; those frames are flagged in ``filled``. Longer gaps and gaps at the ends
     stay missing (see :meth:`Track.gaps`)."""
     landmarks = track.landmarks.copy()
-    filled = track.filled.copy()
-    longest = max(1, int(round(max_gap * track.fps)))
-    for first, last in track.gaps():
-        if first == 0 or last == len(track) - 1 or last - first + 1 > longest:
-            continue
-        before, after = landmarks[first - 1], landmarks[last + 1]
-        for k, frame in enumerate(range(first, last + 1), 1):
-            s = k / (last - first + 2)
-            landmarks[frame] = (1 - s) * before + s * after
-        filled[first:last + 1] = True
+    filled = fill_short_gaps(landmarks, track.usable, track.fps, max_gap) | track.filled
     landmarks.flags.writeable = filled.flags.writeable = False  # handed over: the Track takes them uncopied
     return replace(track, landmarks=landmarks, filled=filled)
+
+
+def fill_short_gaps(landmarks, usable: np.ndarray, fps: float, max_gap: float = 0.2) -> np.ndarray:
+    """Interpolate, in place, the runs of frames ``usable`` lacks that last at most ``max_gap`` seconds
+    and have a face on both sides, in ``landmarks (T, L, 3)`` (an array or a
+    :class:`~faceanim.framestore.FrameStore`); returns ``(T,)`` the frames filled."""
+    filled = np.zeros(len(usable), dtype=bool)
+    longest = max(1, int(round(max_gap * fps)))
+    for first, last in gaps_of(usable):
+        if first == 0 or last == len(usable) - 1 or last - first + 1 > longest:
+            continue
+        before, after = landmarks[first - 1], landmarks[last + 1]
+        s = (np.arange(first, last + 1) - first + 1)[:, None, None] / (last - first + 2)
+        landmarks[first:last + 1] = (1 - s) * before + s * after
+        filled[first:last + 1] = True
+    return filled
 
 
 class _Rows:
@@ -249,6 +262,10 @@ class _Rows:
 
     def __init__(self, expected: int | None = None):
         self._data, self._count, self._expected = None, 0, expected or 0
+
+    def expect(self, count: int | None) -> None:
+        """The number of rows to make room for at the first (a container's frame count; may be wrong)."""
+        self._expected = count or 0
 
     def append(self, row) -> None:
         if row is None and self._data is None:
@@ -273,17 +290,28 @@ class _Rows:
         return self._data
 
 
-def track_video(path, *, options: TrackerOptions | None = None, max_gap: float = 0.2,
-                progress=None, model=None) -> Track:
-    """Track the face through a video, an image or an image folder; with ``model`` (a
-    ``face_landmarker.task`` file) through MediaPipe's Tasks API, which adds 52 blendshape scores.
-    ``progress``: a :class:`~faceanim.progress.Progress` or a bool; None shows a bar when stderr is
-    a terminal.
+class TrackedFrames(NamedTuple):
+    """What a pass of the tracker over a video leaves besides the landmarks: per frame whether a face
+    was found and when, the video's rate and size, and the blendshape names (Tasks tracker)."""
+
+    valid: np.ndarray
+    times: np.ndarray
+    fps: float
+    width: int
+    height: int
+    blendshape_names: tuple[str, ...]
+
+
+def track_frames(path, faces, shapes, *, options: TrackerOptions | None = None, progress=None,
+                 model=None) -> TrackedFrames:
+    """Run the tracker over every frame of ``path``, appending each frame's landmarks (or None) to
+    ``faces`` and its blendshape scores (or None) to ``shapes`` (anything with ``append``: rows in
+    memory, or a :class:`~faceanim.framestore.FrameStore`'s rows on disk).
 
     Raises
     ------
     InputError
-        The file cannot be read as video, or no frame has a face.
+        The file cannot be read as video, holds no frames, or no frame has a face.
     """
     from ..progress import Progress, as_progress
 
@@ -292,7 +320,9 @@ def track_video(path, *, options: TrackerOptions | None = None, max_gap: float =
     valid, times = [], []
     names = ()
     with open_frames(path) as source, open_tracker(options, model) as tracker:
-        faces, shapes = _Rows(source.frame_count), _Rows(source.frame_count)
+        if hasattr(faces, "expect"):
+            faces.expect(source.frame_count)
+            shapes.expect(source.frame_count)
         for index, (time, rgb) in enumerate(shown.bar(source, total=source.frame_count, desc="tracking")):
             time = time if time is not None else index / source.fps
             face = tracker(rgb, time)
@@ -306,8 +336,25 @@ def track_video(path, *, options: TrackerOptions | None = None, max_gap: float =
         raise InputError(f"{path}: holds no frames")
     if not any(valid):
         raise InputError(f"{path}: no face was found in any of its {len(valid)} frames")
-    landmarks = faces.array()
-    blendshapes = shapes.array() if model is not None and names else None
-    track = Track(landmarks, np.array(valid), np.zeros(len(valid), bool), np.array(times, dtype=np.float64),
-                  fps, width, height, str(path), blendshapes, tuple(names))
+    return TrackedFrames(np.array(valid), np.array(times, dtype=np.float64), fps, width, height,
+                         tuple(names) if model is not None else ())
+
+
+def track_video(path, *, options: TrackerOptions | None = None, max_gap: float = 0.2,
+                progress=None, model=None) -> Track:
+    """Track the face through a video, an image or an image folder; with ``model`` (a
+    ``face_landmarker.task`` file) through MediaPipe's Tasks API, which adds 52 blendshape scores.
+    ``progress``: a :class:`~faceanim.progress.Progress` or a bool; None shows a bar when stderr is
+    a terminal.
+
+    Raises
+    ------
+    InputError
+        The file cannot be read as video, or no frame has a face.
+    """
+    faces, shapes = _Rows(), _Rows()
+    seen = track_frames(path, faces, shapes, options=options, progress=progress, model=model)
+    blendshapes = shapes.array() if seen.blendshape_names else None
+    track = Track(faces.array(), seen.valid, np.zeros(len(seen.valid), bool), seen.times, seen.fps, seen.width,
+                  seen.height, str(path), blendshapes, seen.blendshape_names)
     return fill_gaps(track, max_gap)

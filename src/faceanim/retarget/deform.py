@@ -153,11 +153,14 @@ class PartsDeformer:
         if not weight.any():  # a target with no jaw (no face points to place one): nothing to fit
             return weight
         controls = self.controls[self.on_skin]
-        turn = self.jaw_turn(angles, controls)  # (T, K, 3)
-        energy = (turn ** 2).sum(axis=(0, 2))
+        energy, along = np.zeros(len(controls)), np.zeros(len(controls))
+        for start in range(0, len(angles), _FIT_CHUNK):  # sums over frames, a chunk of the motion at a time
+            at = slice(start, start + _FIT_CHUNK)
+            turn = self.jaw_turn(angles[at], controls)  # (t, K, 3)
+            energy += (turn ** 2).sum(axis=(0, 2))
+            along += (displacements[at][:, self.on_skin] * turn).sum(axis=(0, 2))
         seen = energy > 1e-12 * max(energy.max(), 1e-300)
-        share = np.where(seen, (np.asarray(displacements)[:, self.on_skin] * turn).sum(axis=(0, 2))
-                         / np.where(seen, energy, 1.0), weight[controls])
+        share = np.where(seen, along / np.where(seen, energy, 1.0), weight[controls])
         change = np.clip(share, 0.0, 1.0) - weight[controls]
         weight[self.skin_ids] = np.clip(weight[self.skin_ids] + self.spread.operator @ change, 0.0, 1.0)
         return weight
@@ -171,7 +174,7 @@ class PartsDeformer:
         ``(stop - start, V, 3)`` of those frames. Frames are independent once the jaw weight is fitted
         (over all frames, from the control points only), so any run of them is made on its own and
         what is held does not grow with the length of the motion beyond the control points' motion."""
-        displacements = np.asarray(displacements, dtype=np.float64)
+        displacements = as_frames(displacements)
         angles = np.asarray(angles, dtype=np.float64)
         eyes = None if eyes is None else np.asarray(eyes, dtype=np.float64)
         weight = self.fitted_jaw_weight(displacements, angles) if fit_weights else self.parts.jaw_weight
@@ -209,6 +212,21 @@ class PartsDeformer:
         return moved
 
 
+_FIT_CHUNK = 1024  # frames of the control points' motion read at once by the fits over all frames
+
+
+def as_frames(displacements):
+    """``(T, K, 3)`` control displacements as given: an array (converted to float64), or any object
+    read by runs of frames (``len`` and ``displacements[a:b]`` giving ``(b - a, K, 3)``, as a streamed
+    capture's carried controls are), so that a long motion is read a run at a time, never held."""
+    if isinstance(displacements, (np.ndarray, list, tuple)):
+        return np.asarray(displacements, dtype=np.float64)
+    if not (hasattr(displacements, "__len__") and hasattr(displacements, "__getitem__")):
+        raise TypeError(f"displacements must be an array (T, K, 3) or read by runs of frames, got "
+                        f"{type(displacements).__name__}")
+    return displacements
+
+
 def parts_frames(target: Target, parts: FaceParts | None, control_vertices, displacements,
                  gaze: FapStream | None = None):
     """A :data:`~faceanim.geometry.animation.FrameSource` of ``target`` moved by its control vertices'
@@ -221,8 +239,11 @@ def parts_frames(target: Target, parts: FaceParts | None, control_vertices, disp
     ids = np.asarray(control_vertices, dtype=np.int64)
     deformer = PartsDeformer(target, parts, ids)
     chin = np.flatnonzero(ids == target.points.get("2.1", -1))
+    displacements = as_frames(displacements)
     if len(chin) and parts.jaw_weight.any():
-        angles = jaw_angles(parts, target.mesh.vertices[ids[chin[0]]], displacements[:, chin[0]])
+        chin_moves = np.concatenate([displacements[a:a + _FIT_CHUNK][:, chin[0]]
+                                     for a in range(0, len(displacements), _FIT_CHUNK)])
+        angles = jaw_angles(parts, target.mesh.vertices[ids[chin[0]]], chin_moves)
     else:
         angles = np.zeros(len(displacements))
     eyes = eye_rotations(gaze, parts) if gaze is not None else None

@@ -63,7 +63,7 @@ def animate_motion(motion: Motion, target: Target, *, head_motion: bool = False,
     names = [names[i] for i in first]
     source = motion.neutral[motion.index(names)]
     carry = weighted_procrustes(source, target.mesh.vertices[ids])[:3, :3]
-    displacements = _held(motion.displacements[:, motion.index(names)], motion.valid) @ carry.T
+    displacements = _CarriedControls(motion, names, carry)
     animation = Animation.streamed(target.mesh, parts_frames(target, parts, ids, displacements, gaze), len(motion),
                                    motion.fps)
     if head_motion:
@@ -74,12 +74,34 @@ def animate_motion(motion: Motion, target: Target, *, head_motion: bool = False,
     return animation
 
 
-def _held(displacements: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """``(T, K, 3)`` with each invalid frame replaced by the last valid one (zeros before the first)."""
-    out = np.zeros_like(displacements)
-    last = np.zeros(displacements.shape[1:])
-    for t, ok in enumerate(valid):
-        if ok:
-            last = displacements[t]
-        out[t] = last
-    return out
+class _CarriedControls:
+    """The shared points' displacements ``(T, K, 3)`` carried into the target's axes, read from the
+    motion a run of frames at a time (``controls[a:b]``): a streamed capture's motion is never held
+    whole. A frame without a face holds the last face seen (zeros, the rest, before the first)."""
+
+    def __init__(self, motion: Motion, names, carry: np.ndarray):
+        self._motion, self._at, self._carry = motion, motion.index(names), carry
+        seen = np.where(motion.valid, np.arange(len(motion)), -1)
+        self._shown = np.maximum.accumulate(seen)  # the frame whose face each frame shows; -1: the rest
+
+    def __len__(self) -> int:
+        return len(self._motion)
+
+    def __getitem__(self, key: slice) -> np.ndarray:
+        start, stop, _ = key.indices(len(self))
+        stop = max(start, stop)
+        shown = self._shown[start:stop]
+        out = np.zeros((stop - start, len(self._at), 3))
+        frames = np.unique(shown[shown >= 0])
+        if frames.size:  # frames in the run, and at most one before it (the last face before a gap)
+            read = np.empty((len(frames), len(self._at), 3))
+            inside = frames >= start
+            if (~inside).any():
+                first = int(frames[0])
+                read[0] = self._motion.chunk(first, first + 1)[0, self._at]
+            if inside.any():
+                lo, hi = int(frames[inside][0]), int(frames[inside][-1]) + 1
+                read[inside] = self._motion.chunk(lo, hi)[frames[inside] - lo][:, self._at]
+            has = shown >= 0
+            out[has] = read[np.searchsorted(frames, shown[has])]
+        return out @ self._carry.T

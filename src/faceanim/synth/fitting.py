@@ -82,7 +82,7 @@ class AuFitter:
     def read_motion(self, motion: Motion) -> np.ndarray:
         """``(T, A)`` intensities of ``motion`` (its points named as ``names``); NaN on frames without
         a face. (The capture's filter has already smoothed the points; the pipeline smooths these.)"""
-        d = motion.displacements[:, motion.index(self.names)]
+        d = motion.points_over_time(self.names)  # only these points: a streamed motion stays on disk
         return self(np.where(motion.valid[:, None, None], d, np.nan))
 
 
