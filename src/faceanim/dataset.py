@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import os
 import socket
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -88,8 +87,8 @@ def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool =
     (unreadable, no face, a bad option): they come back as a failed :class:`VideoResult`."""
     from . import pipeline
     from .atomic import output_group
-    from .capture.track import track_video
     from .expressions import aus
+    from .inputs import captured_source
     from .mpeg4.fapfile import read_fap
 
     start = time.perf_counter()
@@ -101,27 +100,22 @@ def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool =
     try:
         if not video.path.is_file():
             raise InputError(f"{video.path}: no such file")
-        with tempfile.TemporaryDirectory(prefix="faceanim-batch-") as work:
-            track_path = Path(work) / f"{video.name}.npz"
-            if "encode" in todo or "aus" in todo:
-                recorded = track_video(video.path, progress=False)
-                frames, tracked = len(recorded), float(recorded.valid.mean())
-                recorded.save(track_path)  # encode and aus read the track, not the video again
-            with output_group():  # this video's outputs appear together, or none of them
-                stream = None
-                if "encode" in todo:
-                    stream, _ = pipeline.encode(track_path, todo["encode"], neutral=video.neutral,
-                                                smoothing=video.smoothing)
-                if "plot" in todo:
-                    _plot_faps(stream if stream is not None else read_fap(wanted["encode"]), todo["plot"], video)
-                if "aus" in todo:
-                    aus(track_path, todo["aus"], neutral=video.neutral, smoothing=video.smoothing)
-                if "animate" in todo:
-                    own = None if video.target is None else pipeline.load_target(video.target)
-                    animation, stream = pipeline.animate(video.path, todo["animate"], target=own or target,
-                                                         neutral=video.neutral, smoothing=video.smoothing)
-                    if frames is None:
-                        frames, tracked = len(animation), float(stream.mask[:, 2:].any(axis=1).mean())
+        capture = None
+        if {"encode", "aus", "animate"} & todo.keys():  # tracked once, streamed through disk, for every step
+            capture = captured_source(video.path, neutral=video.neutral, smoothing=video.smoothing,
+                                      folder=Path(folder))
+            frames, tracked = len(capture), float(capture.valid.mean())
+        with output_group():  # this video's outputs appear together, or none of them
+            stream = None
+            if "encode" in todo:
+                stream, _ = pipeline.encode(video.path, todo["encode"], capture=capture)
+            if "plot" in todo:
+                _plot_faps(stream if stream is not None else read_fap(wanted["encode"]), todo["plot"], video)
+            if "aus" in todo:
+                aus(video.path, todo["aus"], smoothing=video.smoothing, capture=capture)
+            if "animate" in todo:
+                own = None if video.target is None else pipeline.load_target(video.target)
+                pipeline.animate(video.path, todo["animate"], target=own or target, capture=capture)
     except Exception as exc:  # noqa: BLE001 - one video's fault is its own, reported in its row
         return VideoResult(str(video.path), video.name, "failed", frames, tracked, time.perf_counter() - start,
                            error=_one_line(exc))

@@ -214,11 +214,13 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
     return animation, made
 
 
-def aus(video, output, *, neutral=None, smoothing=True, progress=None):
+def aus(video, output, *, neutral=None, smoothing=True, progress=None, capture=None):
     """``faceanim aus``: per-frame FACS AU intensities of a video (or a saved ``.npz`` track), as
     OpenFace 2.2's CSV (``frame, face_id, timestamp, confidence, success, pose_R*, AU*_r, AU*_c``; see
     :mod:`faceanim.export.curves`), timed by the video's own presentation times. Returns ``(AU numbers,
-    (T, A) intensities on the 0-1 scale)`` (the CSV's ``AU*_r`` are these times 5, at most 5)."""
+    (T, A) intensities on the 0-1 scale)`` (the CSV's ``AU*_r`` are these times 5, at most 5).
+    ``capture``, the :class:`~faceanim.capture.stream.Capture` of ``video`` already made, stands in
+    for tracking it again."""
     from .capture.smoothing import OneEuro, one_euro
     from .export.curves import openface_pose, write_au_csv
     from .generic import landmark_target
@@ -231,8 +233,8 @@ def aus(video, output, *, neutral=None, smoothing=True, progress=None):
 
     output = Path(output)
     check_outputs({"-o": (output, ".csv")}, inputs={"VIDEO": video, "--neutral": neutral})
-    recorded = captured_source(video, neutral=neutral, smoothing=smoothing, progress=as_progress(progress),
-                               folder=output.parent)  # the landmarks on disk: memory flat in length
+    recorded = capture or captured_source(video, neutral=neutral, smoothing=smoothing, progress=as_progress(progress),
+                                          folder=output.parent)  # the landmarks on disk: memory flat in length
     motion = recorded.motion
     face = MuscleFace(landmark_target(motion.neutral[:468]))
     fitter = AuFitter(face, motion.names[:468])

@@ -159,15 +159,18 @@ def track(video, output, *, overlay=None, csv=None, start_face: str = "largest",
     return result
 
 
-def encode(source, output, *, neutral=None, smoothing=True, progress=None):
-    """``faceanim encode``: video or track -> ``.fap``. Returns (stream, number of clipped values)."""
+def encode(source, output, *, neutral=None, smoothing=True, progress=None, capture=None):
+    """``faceanim encode``: video or track -> ``.fap``. Returns (stream, number of clipped values).
+    ``capture``, the :class:`~faceanim.capture.stream.Capture` of ``source`` already made (batch makes
+    one per video for all its steps), stands in for tracking it again."""
     from .motion import clip_to_range, motion_to_faps
     from .mpeg4.fapfile import write_fap
 
     output = Path(output)
     check_outputs({"-o": (output, ".fap")}, inputs={"VIDEO_OR_TRACK": source, "--neutral": neutral})
-    capture = captured_source(source, neutral=neutral, smoothing=smoothing, progress=progress,
-                              folder=output.parent)  # the landmarks on disk: memory flat in length
+    if capture is None:  # the landmarks on disk: memory flat in length
+        capture = captured_source(source, neutral=neutral, smoothing=smoothing, progress=progress,
+                                  folder=output.parent)
     stream, clipped = clip_to_range(motion_to_faps(capture.motion,
                                                    name=Path(source).stem.replace(" ", "_") or "faceanim"))
     write_fap(output, stream)
@@ -327,7 +330,7 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
 
 def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=None, fap=None, head_motion=False,
             progress=None, neutral=None, target=None, obj_sequence=None, csv=None, via="motion", smoothing=True,
-            parts=None):
+            parts=None, capture=None):
     """``faceanim animate``: a video of a face drives a target mesh. ``target``, a ready
     :class:`~faceanim.target.Target`, stands in for the mesh and its points. ``neutral``: the frames
     at rest (``FRAME`` or ``START:END``; found automatically when None); ``smoothing``: the One Euro filter.
@@ -336,8 +339,9 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     a target sharing too few points (a JSON file of other names) falls back to the FAPs, with a
     warning. ``via="faps"`` plays the FAP stream, as ``decode`` would play the ``.fap`` file.
     ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None).
-    Returns ``(animation, stream)``: the streamed :class:`~faceanim.geometry.animation.Animation`
-    (reading its frames deforms them again) and the FAPs."""
+    ``capture``, the :class:`~faceanim.capture.stream.Capture` of ``video`` already made, stands in
+    for tracking it again. Returns ``(animation, stream)``: the streamed
+    :class:`~faceanim.geometry.animation.Animation` (reading its frames deforms them again) and the FAPs."""
     from .capture.neutral import parse_neutral
     from .capture.overlay import overlay_frames
     from .motion import clip_to_range, motion_to_faps
@@ -358,7 +362,8 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
     # The landmarks and the motion stay in unnamed temporary files beside the output (freed with the
     # animation returned): memory does not grow with the video's length.
-    capture = captured_source(video, neutral=neutral, smoothing=smoothing, progress=shown, folder=output.parent)
+    if capture is None:
+        capture = captured_source(video, neutral=neutral, smoothing=smoothing, progress=shown, folder=output.parent)
     motion = capture.motion
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
     if via == "motion" and len(shared_points(motion, target)) < MINIMUM_SHARED_POINTS:
