@@ -11,11 +11,11 @@ there: the frames cost disk (0.3 MB a frame on that head), not memory, and are d
 from __future__ import annotations
 
 import contextlib
-import tempfile
 from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from ..framestore import FrameStore
 from ..validation import as_array
 from .mesh import Mesh
 
@@ -144,15 +144,8 @@ def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "de
         yield animation
         return
     rest = animation.mesh.vertices
-    frame_bytes = rest.size * 4
-    with tempfile.TemporaryFile(prefix=".faceanim-frames-", dir=folder) as store:
+    with FrameStore(rest.shape, folder=folder) as store:
         for frame in as_progress(progress).bar(animation.frames(), total=len(animation), desc=desc):
-            store.write((frame - rest).astype(np.float32).tobytes())
-        store.flush()
-
-        def frames(start: int, stop: int) -> np.ndarray:
-            store.seek(start * frame_bytes)
-            raw = store.read((stop - start) * frame_bytes)
-            return rest + np.frombuffer(raw, dtype=np.float32).reshape(stop - start, -1, 3)
-
-        yield Animation.streamed(animation.mesh, frames, len(animation), animation.fps)
+            store.append(frame - rest)
+        yield Animation.streamed(animation.mesh, lambda start, stop: rest + store[start:stop], len(animation),
+                                 animation.fps)
