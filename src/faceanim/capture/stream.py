@@ -21,13 +21,13 @@ from ..framestore import FrameStore
 from ..motion import Motion
 from .headframe import DEFAULT_SMOOTHING, displacements_from, head_frame_into, landmark_names, settle
 from .smoothing import OneEuro
-from .track import Track, _Rows, fill_short_gaps, gaps_of, track_frames
+from .track import FrameFacts, Track, _Rows, fill_short_gaps, track_frames
 
 __all__ = ["Capture", "captured"]
 
 
 @dataclass(frozen=True, eq=False)
-class Capture:
+class Capture(FrameFacts):
     """A streamed capture: the motion and what the tracker saw, with the landmarks on disk.
 
     It answers what a :class:`~faceanim.capture.track.Track` answers for the frames' facts
@@ -48,17 +48,6 @@ class Capture:
     blendshapes: np.ndarray | None = None
     blendshape_names: tuple[str, ...] = ()
 
-    def __len__(self) -> int:
-        return len(self.valid)
-
-    @property
-    def usable(self) -> np.ndarray:
-        """(T,) bool: frames with landmarks, found or filled."""
-        return self.valid | self.filled
-
-    def gaps(self) -> list[tuple[int, int]]:
-        """``(first, last)`` frame of every run of frames left without landmarks."""
-        return gaps_of(self.usable)
 
 
 class _StoreRows:
@@ -116,6 +105,8 @@ def captured(source, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTH
         names = seen.blendshape_names
         filled = fill_short_gaps(raw, valid, fps, max_gap)
     usable = valid | filled
+    if not usable.any():  # a saved track can hold no face at all (a video that does is refused when tracked)
+        raise InputError(f"the track of {name or 'a video'} holds no frame with a face ({len(usable)} frames)")
     if neutral is not None and not 0 <= neutral[0] < neutral[1] <= len(usable):
         raise InputError(f"--neutral {neutral[0]}:{neutral[1]}: frames must lie in [0, {len(usable)}) "
                          "with START < END")

@@ -21,8 +21,28 @@ __all__ = ["Track", "TrackedFrames", "track_video", "track_frames", "fill_gaps",
 _MAX_SIZE = 1 << 20  # pixels along a frame's side: far beyond any video, well inside int32
 
 
+class FrameFacts:
+    """What a Track and a streamed :class:`~faceanim.capture.stream.Capture` both answer from their
+    ``valid`` and ``filled`` flags."""
+
+    valid: np.ndarray
+    filled: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.valid)
+
+    @property
+    def usable(self) -> np.ndarray:
+        """(T,) bool: frames with landmarks, found or filled."""
+        return self.valid | self.filled
+
+    def gaps(self) -> list[tuple[int, int]]:
+        """``(first, last)`` frame of every run of frames left without landmarks."""
+        return gaps_of(self.usable)
+
+
 @dataclass(frozen=True, eq=False)
-class Track:
+class Track(FrameFacts):
     """Raw tracker output for a video; immutable (read-only arrays) and checked on construction.
 
     Attributes
@@ -106,18 +126,6 @@ class Track:
 
     def __setstate__(self, state):
         restore_frozen(self, state)
-
-    def __len__(self) -> int:
-        return len(self.valid)
-
-    @property
-    def usable(self) -> np.ndarray:
-        """(T,) bool: frames with landmarks, found or filled."""
-        return self.valid | self.filled
-
-    def gaps(self) -> list[tuple[int, int]]:
-        """``(first, last)`` frame of every run of frames left without landmarks."""
-        return gaps_of(self.usable)
 
     def pixels(self) -> np.ndarray:
         """(T, L, 2) landmark positions in pixels."""
