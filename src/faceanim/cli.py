@@ -385,10 +385,10 @@ def _run(args, progress) -> str:
             return (f"wrote {args.output}: {model.parameter_count} parameters ({model.method}: "
                     f"{', '.join(model.parameter_names)}) over {len(model.names)} mobile points and "
                     f"{len(model.fap_columns)} FAPs; {100 * explained:.1f}% of their variance on the frames used")
-        stream, parameters, clipped = speech.analyse_speech(
+        stream, parameters, outside = speech.analyse_speech(
             args.video, args.output, model=args.model, params_csv=args.params_csv, neutral=args.neutral,
             smoothing=not args.no_filter, progress=progress)
-        note = f"; {clipped} values clipped to their MPEG-4 range" if clipped else ""
+        note = f"; {outside} values outside their MPEG-4 range (kept: the model's own)" if outside else ""
         return (f"wrote {args.output}: {len(stream)} frames, {int(stream.mask.any(axis=0).sum())} FAPs from "
                 f"{parameters.shape[1]} parameters{note}" + (f", parameters in {args.params_csv}"
                                                             if args.params_csv else ""))

@@ -77,10 +77,10 @@ def analyse_speech(video, output, *, model, params_csv=None, neutral=None, smoot
     the articulatory parameters per frame (``frame, timestamp, <parameter names>``).
 
     Each frame's mobile points, as displacements from the video's own neutral face, are fitted by the
-    model's parameters (least squares, cm); the FAPs are then the model's, every one of them on every
-    frame with a face (values outside MPEG-4's ranges clipped to them). Returns ``(stream, parameters
-    (T, K), clipped)``."""
-    from .motion import clip_to_range
+    model's parameters (least squares, cm); the FAPs are then the model's own, every one of them on
+    every frame with a face, unclipped, so that the model reproduces them (a chin above the neutral's
+    gives a negative ``open_jaw``, outside MPEG-4's range). Returns ``(stream, parameters (T, K),
+    outside)``, ``outside`` the number of values outside MPEG-4's ranges."""
     from .mpeg4.fapfile import write_fap
     from .speaker import read_speaker
 
@@ -95,7 +95,7 @@ def analyse_speech(video, output, *, model, params_csv=None, neutral=None, smoot
                          f"{', ...' if len(missing) > 5 else ''})")
     parameters = speaker.fit_points(motion.displacements[:, motion.index(speaker.names)])
     parameters[~motion.valid] = np.nan
-    stream, clipped = clip_to_range(speaker.to_faps(parameters, fps=motion.fps, name=_stem(video)))
+    stream = speaker.to_faps(parameters, fps=motion.fps, name=_stem(video))
     write_fap(output, stream)
     if params_csv is not None:
         with atomic_output(params_csv) as tmp, open(tmp, "w", newline="", encoding="utf-8") as handle:
@@ -103,4 +103,4 @@ def analyse_speech(video, output, *, model, params_csv=None, neutral=None, smoot
             writer.writerow(["frame", "timestamp", *speaker.parameter_names])
             for t, row in enumerate(parameters):
                 writer.writerow([t, f"{t / motion.fps:.6g}", *("" if np.isnan(v) else f"{v:.6g}" for v in row)])
-    return stream, parameters, clipped
+    return stream, parameters, int(stream.out_of_range().sum())

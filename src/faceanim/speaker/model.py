@@ -235,21 +235,31 @@ class SpeakerModel:
 
     # ---- the inverse: the FAPs that arrived -> parameters
 
-    def solver(self, received) -> np.ndarray:
+    def solver(self, received, *, quant: float | None = None) -> np.ndarray:
         """(K, n) the ridge pseudo-inverse for the model's FAPs flagged in ``received (J,) bool`` (n of
         them): ``parameters = solver @ (faps - offset)`` on those FAPs. It depends only on which FAPs
-        arrived, so it is made once per subset and kept.
+        arrived (and ``quant``), so it is made once per subset and kept.
 
-        The solve is ``min |W (G a - f)|^2 + ridge |a|^2`` with ``W`` the FAPs' units in cm, so every
-        FAP's error counts as the distance its point is off."""
+        The solve is ``min |W (G a - f)|^2 + r |a|^2``. By default ``W`` is the FAPs' units in cm, so
+        every FAP's error counts as the distance its point is off, and ``r`` is :attr:`ridge`: the
+        setting for measured FAPs, whose error is the model's misfit of real motion. With ``quant``, the
+        quantiser scale a FAP coder used (steps ``QP x quant``, :mod:`faceanim.mpeg4.fapcoder`), ``W`` is
+        one over each FAP's step and ``r`` is 1/12, the variance of a rounding error in steps: the
+        least-squares estimate for FAPs whose error is their quantisation (parameters of unit prior
+        variance)."""
         received = np.asarray(received, dtype=bool)
-        key = ("solver", received.tobytes())
-        return self._cached(key, lambda: self._solver(received))
+        if quant is not None and not (np.isfinite(quant) and quant > 0):
+            raise ValueError(f"quant must be a positive number, got {quant!r}")
+        key = ("solver", received.tobytes(), None if quant is None else float(quant))
+        return self._cached(key, lambda: self._solver(received, quant))
 
-    def _solver(self, received: np.ndarray) -> np.ndarray:
-        _, G, _, weight = self._cached("forward", self._forward)
+    def _solver(self, received: np.ndarray, quant: float | None) -> np.ndarray:
+        columns, G, _, weight = self._cached("forward", self._forward)
+        ridge = self.ridge
+        if quant is not None:
+            weight, ridge = 1.0 / (fap_table().quant_step[columns] * quant), 1.0 / 12.0
         A = weight[received, None] * G[received]
-        normal = A.T @ A + self.ridge * np.eye(self.parameter_count)
+        normal = A.T @ A + ridge * np.eye(self.parameter_count)
         return np.linalg.solve(normal, A.T * weight[received])
 
     def _received(self, stream: FapStream) -> np.ndarray:
@@ -287,9 +297,9 @@ class SpeakerModel:
             if len(group):
                 yield frames[group], received[frames[group[0]]]
 
-    def to_parameters(self, stream: FapStream) -> np.ndarray:
-        """(T, K) the parameters that best explain each frame's FAPs (see :meth:`solver`); NaN on
-        frames carrying fewer of the model's FAPs than it has parameters.
+    def to_parameters(self, stream: FapStream, *, quant: float | None = None) -> np.ndarray:
+        """(T, K) the parameters that best explain each frame's FAPs (see :meth:`solver`, and there for
+        ``quant``); NaN on frames carrying fewer of the model's FAPs than it has parameters.
 
         Raises
         ------
@@ -301,15 +311,16 @@ class SpeakerModel:
         a = np.full((len(stream), self.parameter_count), np.nan)
         values = stream.values[:, self.fap_columns] - self.fap_offset
         for frames, mask in self._groups(received, enough):
-            a[frames] = values[np.ix_(frames, np.flatnonzero(mask))] @ self.solver(mask).T
+            a[frames] = values[np.ix_(frames, np.flatnonzero(mask))] @ self.solver(mask, quant=quant).T
         return a
 
-    def regularise(self, stream: FapStream) -> FapStream:
+    def regularise(self, stream: FapStream, *, quant: float | None = None) -> FapStream:
         """``stream`` as the model explains it: on each frame carrying at least as many of the model's
         FAPs as it has parameters, every one of the model's FAPs is regenerated from the parameters
         that best explain those received (filled in where absent, denoised where present). Other FAPs
         (eyes, brows, head) pass through as they arrived, and so do frames carrying too few of the
-        model's FAPs (a frame without a face carries none).
+        model's FAPs (a frame without a face carries none). ``quant``: the quantiser scale of a coded
+        stream, which weighs each FAP by its step (see :meth:`solver`); default: weighed in cm.
 
         Raises
         ------
@@ -323,7 +334,8 @@ class SpeakerModel:
         measured = stream.values[:, self.fap_columns] - self.fap_offset
         G = self.fap_matrix
         for frames, subset in self._groups(received, enough):
-            operator = self._cached(("regularise", subset.tobytes()), lambda s=subset: G @ self.solver(s))
+            key = ("regularise", subset.tobytes(), None if quant is None else float(quant))
+            operator = self._cached(key, lambda s=subset: G @ self.solver(s, quant=quant))
             result = measured[np.ix_(frames, np.flatnonzero(subset))] @ operator.T + self.fap_offset
             values[np.ix_(frames, self.fap_columns)] = result
         mask[np.ix_(enough, self.fap_columns)] = True

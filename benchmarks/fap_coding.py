@@ -1,0 +1,229 @@
+"""FAP coding through the speaker model: PSNR against bit rate (issue 17, part 4; the ICP figure).
+
+    flock /tmp/faceanim-bench.lock python benchmarks/fap_coding.py
+
+For ``speech_man.mp4`` and ``speech_woman.mp4``, two settings:
+
+* **the model's own stream** (the original's setting): the guided 6-parameter model built on the whole
+  clip (as ``faceanim speaker build`` does), and the stream ``faceanim speaker analyse`` makes of the
+  same clip with it (30 FAPs: lips, jaw, chin, cheeks; whole FAPU counts as in the ``.fap``), decoded
+  through the model knowing the quantiser (``regularise(quant=...)``: each FAP weighed by its step);
+* **the honest case**: the tracked FAPs of the video itself (``motion_to_faps`` of the capture, as
+  ``faceanim encode`` writes them, on the model's 30 FAPs) on alternate 2-second blocks, decoded
+  through a model built on the other blocks (both folds, their streams joined), with ``regularise``'s
+  default weights (cm: the error here is the model's misfit of real motion, not quantisation); the
+  step-weighted decoding is reported beside it.
+
+Each stream is coded by ``faceanim.mpeg4.fapcoder.encode_faps`` at quantiser scales ``quant`` from
+0.5 to 64 and decoded: (a) all 30 FAPs coded, decoded as they are; (b) the same decoded through the
+speaker model (``SpeakerModel.regularise``); (c) only 26 (the lips and jaw, 3-18 and 51-60), 8 (3, 14,
+16, 17, 51-54) or 6 (3, 16, 51-54) FAPs coded, decoded through the model, which fills in the rest.
+
+FAP PSNR (``fapcoder.fap_psnr``): 20 log10 of the peak-to-peak range of the original FAPs over the RMS
+error, pooled over the 30 FAPs of the original on every frame (sent or filled in; a FAP a decoder
+does not fill in counts as its held value). Rate: kbit/s at the video's frame rate, of the whole
+``.fba`` (header, masks and end check included) and of the range coder's payload alone. The gain of
+(b) over (a) at equal rate interpolates (b)'s curve (PSNR against log rate) at each of (a)'s rates.
+Writes ``benchmarks/results/fap_coding.md`` and ``fap_coding.png``.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from report import RESULTS, publish  # noqa: E402
+
+os.environ.setdefault("GLOG_minloglevel", "2")
+VIDEOS = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "videos"
+CLIPS = ("speech_man", "speech_woman")
+QUANTS = (0.5, 1, 2, 4, 8, 16, 32, 64)
+SUBSETS = {"26": tuple(range(3, 19)) + tuple(range(51, 61)), "8": (3, 14, 16, 17, 51, 52, 53, 54),
+           "6": (3, 16, 51, 52, 53, 54)}
+CURVES = ("a: 30 coded", "b: 30 through the model", "c: 26 through the model", "c: 8 through the model",
+          "c: 6 through the model")
+
+
+def payload_bytes(data: bytes) -> int:
+    """The range coder's payload in an ``.fba`` (see fapcoder's container): u32 N words before the check."""
+    # the payload is the last field before the 4-byte check: N u32 words, preceded by u32 N. From N = 0
+    # up, the first match is the payload (a random coder word matches its distance with odds ~ N / 2**32)
+    for words in range(len(data) // 4):
+        at = len(data) - 4 - 4 * words - 4
+        if at >= 0 and struct.unpack_from("<I", data, at)[0] == words:
+            return 4 * words + 4
+    raise ValueError("no payload found")
+
+
+def model_stream(motion, model, frames):
+    """The speaker analyse stream of ``frames`` of ``motion`` (whole counts, as in the ``.fap``)."""
+    from faceanim.mpeg4.fapstream import FapStream
+
+    d = motion.displacements[frames][:, motion.index(model.names)]
+    stream = model.to_faps(model.fit_points(d), fps=motion.fps)
+    return FapStream(np.rint(stream.values), stream.mask, stream.fps)
+
+
+def tracked_stream(faps, model, frames):
+    """The tracked FAPs of ``frames`` (as encode writes them) on the model's FAPs only."""
+    from faceanim.motion import clip_to_range
+    from faceanim.mpeg4.fapstream import FapStream
+
+    keep = np.zeros(faps.mask.shape[1], bool)
+    keep[model.fap_columns] = True
+    stream, _ = clip_to_range(faps)
+    return FapStream(np.rint(stream.values[frames]), stream.mask[frames] & keep, stream.fps)
+
+
+def curves(pieces, *, weigh: str = "steps") -> dict:
+    """{curve: [(quant, kbit/s, payload kbit/s, PSNR)]} over ``pieces``: [(original stream, model)] coded
+    separately, rates and errors pooled. ``weigh``: the interpretation's weights, "steps" (each FAP by
+    its quantiser step, ``regularise(quant=...)``) or "cm" (the default of ``regularise``)."""
+    from faceanim.mpeg4.fapcoder import decode_faps, encode_faps
+    from faceanim.mpeg4.fapstream import FapStream, held
+
+    out = {name: [] for name in CURVES}
+    for quant in QUANTS:
+        for name in CURVES:
+            bits = payload = seconds = 0.0
+            errors, originals = [], []
+            for original, model in pieces:
+                sent = None if name.startswith(("a", "b")) else SUBSETS[name.split()[1]]
+                data = encode_faps(original, quant=quant, faps=sent)
+                decoded = decode_faps(data)
+                if not name.startswith("a"):
+                    decoded = model.regularise(decoded, quant=quant if weigh == "steps" else None)
+                decoded = FapStream(decoded.values, decoded.mask, decoded.fps)
+                where = original.mask
+                errors.append((held(decoded) - original.values)[where])
+                originals.append(original.values[where])
+                bits += 8 * len(data)
+                payload += 8 * payload_bytes(data)
+                seconds += len(original) / original.fps
+            truth = np.concatenate(originals)
+            rms = np.sqrt(np.mean(np.concatenate(errors) ** 2))
+            psnr = 20 * np.log10(np.ptp(truth) / rms) if rms > 0 else np.inf
+            out[name].append((quant, bits / seconds / 1000, payload / seconds / 1000, psnr))
+    return out
+
+
+def gain_at_equal_rate(a, b) -> list[tuple[float, float]]:
+    """(rate, PSNR of b interpolated at that rate minus a's) at each of a's rates inside b's range."""
+    rb = np.log([r for _, r, _, _ in b])
+    pb = np.array([p for *_, p in b])
+    order = np.argsort(rb)
+    gains = []
+    for _, rate, _, psnr in a:
+        x = np.log(rate)
+        if rb.min() <= x <= rb.max():
+            gains.append((rate, float(np.interp(x, rb[order], pb[order]) - psnr)))
+    return gains
+
+
+def worst_faps(pieces, quant=0.5, weigh="cm") -> str:
+    """The three FAPs the model misses most (RMS, FAPU) on ``pieces`` decoded through it, finely coded."""
+    from faceanim.mpeg4 import fap_table
+    from faceanim.mpeg4.fapcoder import decode_faps, encode_faps
+
+    table = fap_table()
+    squared, count = 0.0, 0
+    for original, model in pieces:
+        decoded = model.regularise(decode_faps(encode_faps(original, quant=quant)),
+                                   quant=quant if weigh == "steps" else None)
+        squared = squared + ((decoded.values - original.values) ** 2 * original.mask).sum(axis=0)
+        count = count + original.mask.sum(axis=0)
+    rms = np.sqrt(squared / np.maximum(count, 1))
+    top = np.argsort(-rms)[:3]
+    return ", ".join(f"{j + 1} {table.names[j]} {rms[j]:.0f}" for j in top)
+
+
+def main() -> None:
+    from faceanim.inputs import capture_motion
+    from faceanim.motion import motion_to_faps
+    from faceanim.speaker import build_model
+
+    settings = {}
+    for clip in CLIPS:
+        motion = capture_motion(VIDEOS / f"{clip}.mp4", progress=False)
+        faps = motion_to_faps(motion)
+        everything = np.flatnonzero(motion.valid)
+        model = build_model(motion, parameters=6)
+        settings[clip, "own"] = [(model_stream(motion, model, everything), model)]
+        block = (np.arange(len(motion)) // int(round(2 * motion.fps))) % 2
+        honest = []
+        for fold in (0, 1):
+            other = build_model(motion, parameters=6, frames=block != fold)
+            honest.append((tracked_stream(faps, other, np.flatnonzero((block == fold) & motion.valid)), other))
+        settings[clip, "honest"] = honest
+        print(f"{clip}: {len(motion)} frames at {motion.fps:g} fps", flush=True)
+    results = {(clip, setting): curves(pieces, weigh="steps" if setting == "own" else "cm")
+               for (clip, setting), pieces in settings.items()}
+    by_steps = {clip: curves(settings[clip, "honest"], weigh="steps") for clip in CLIPS}
+    lines = ["# FAP coding through the speaker model: PSNR against bit rate", "",
+             "`flock /tmp/faceanim-bench.lock python benchmarks/fap_coding.py` (see the script for the settings). "
+             "PSNR: 20 log10(peak-to-peak range of the original's 30 FAPs / RMS error over them, sent or filled "
+             "in). kbit/s of the whole .fba (header, masks, end check), payload-only in brackets. own: the "
+             "stream speaker analyse makes with the model built on the whole clip; honest: the tracked FAPs "
+             "(encode's) of alternate 2-second blocks through a model built on the other blocks.", ""]
+    for (clip, setting), table in results.items():
+        lines += [f"## {clip}, {setting}", "", "| quant | " + " | ".join(CURVES) + " |",
+                  "|---:|" + "---:|" * len(CURVES)]
+        for i, quant in enumerate(QUANTS):
+            cells = [f"{table[c][i][3]:.1f} dB @ {table[c][i][1]:.2f} ({table[c][i][2]:.2f})" for c in CURVES]
+            lines.append(f"| {quant:g} | " + " | ".join(cells) + " |")
+        gains = gain_at_equal_rate(table[CURVES[0]], table[CURVES[1]])
+        lines += ["", "Gain of (b) over (a) at (a)'s rates: " + ", ".join(
+            f"{g:+.1f} dB @ {r:.2f}" for r, g in gains) if gains else "(b)'s rates do not overlap (a)'s."]
+        eight = [(r, p) for _, r, _, p in table[CURVES[3]] if r <= 0.5]
+        best = max(eight, key=lambda x: x[1]) if eight else None
+        lines.append("Best 8-FAP PSNR at <= 0.5 kbit/s (whole file): " + (
+            f"{best[1]:.1f} dB @ {best[0]:.2f} kbit/s" if best else "none at that rate"))
+        eight_payload = [(r, p) for _, _, r, p in table[CURVES[3]] if r <= 0.5]
+        best = max(eight_payload, key=lambda x: x[1]) if eight_payload else None
+        lines.append("Best 8-FAP PSNR at <= 0.5 kbit/s of payload: " + (
+            f"{best[1]:.1f} dB @ {best[0]:.2f} kbit/s" if best else "none at that rate"))
+        if setting == "honest":
+            lines.append(f"FAPs the model misses most (RMS FAPU, quant 0.5, through the model): "
+                         f"{worst_faps(settings[clip, setting])}")
+            other = by_steps[clip]
+            gains = gain_at_equal_rate(other[CURVES[0]], other[CURVES[1]])
+            lines.append("Weighed by quantiser steps instead (as for the own stream): (b) " + ", ".join(
+                f"{p:.1f} dB @ {r:.2f}" for _, r, _, p in other[CURVES[1]]) + "; 8 FAPs " + ", ".join(
+                f"{p:.1f} dB @ {r:.2f}" for _, r, _, p in other[CURVES[3]]) + "; gain of (b) over (a): " + ", ".join(
+                f"{g:+.1f} dB @ {r:.2f}" for r, g in gains))
+        lines.append("")
+    publish("fap_coding.md", lines)
+    plot(results)
+
+
+def plot(results) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7.5), sharey=True)
+    for ax, ((clip, setting), table) in zip(axes.T.ravel(), results.items(), strict=True):
+        for name, style in zip(CURVES, ("o-", "s-", "^--", "v--", "d:"), strict=True):
+            rates = [r for _, r, _, _ in table[name]]
+            ax.plot(rates, [p for *_, p in table[name]], style, label=name, markersize=4)
+        ax.set_xscale("log")
+        ax.set_title(f"{clip}, {setting}")
+        ax.set_xlabel("kbit/s (whole .fba)")
+        ax.set_ylabel("FAP PSNR (dB)")
+        ax.axhline(30, color="grey", lw=0.5)
+        ax.axvline(0.5, color="grey", lw=0.5)
+        ax.grid(True, which="both", lw=0.3)
+    axes[0, 0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(RESULTS / "fap_coding.png", dpi=80)
+    print(f"wrote {RESULTS / 'fap_coding.png'} ({(RESULTS / 'fap_coding.png').stat().st_size / 1024:.0f} KB)")
+
+
+if __name__ == "__main__":
+    main()
