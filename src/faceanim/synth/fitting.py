@@ -82,8 +82,12 @@ class AuFitter:
     def read_motion(self, motion: Motion) -> np.ndarray:
         """``(T, A)`` intensities of ``motion`` (its points named as ``names``); NaN on frames without
         a face. (The capture's filter has already smoothed the points; the pipeline smooths these.)"""
-        d = motion.points_over_time(self.names)  # only these points: a streamed motion stays on disk
-        return self(np.where(motion.valid[:, None, None], d, np.nan))
+        at = motion.index(self.names)
+        out = np.empty((len(motion), len(self.codes)))
+        for start, d in motion.chunks():  # a chunk at a time: a streamed motion's frames stay on disk
+            valid = motion.valid[start:start + len(d), None, None]
+            out[start:start + len(d)] = self(np.where(valid, d[:, at], np.nan))
+        return out
 
 
 def bilateral(codes, intensities) -> tuple[tuple[int, ...], np.ndarray]:
