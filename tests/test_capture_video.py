@@ -131,9 +131,10 @@ def test_dlib_photos_landmark_error():
     assert np.isfinite(nme).all() and nme.mean() <= 0.062
 
 
-def test_tasks_model_adds_blendshapes_that_see_the_smile(tmp_path):
-    """sergey.png is a smiling portrait: the Tasks landmarker's smile scores are high, its landmarks agree
-    with the FaceMesh tracker's, and the CSV carries the 52 scores."""
+def test_a_model_bundle_given_tracks_as_the_packaged_one(tmp_path):
+    """sergey.png is a smiling portrait: tracked with a face_landmarker.task given by --model (the shared
+    copy), the smile scores are high, its landmarks agree with the packaged model's, and the CSV carries
+    the 52 scores."""
     from faceanim.capture.track import Track, track_video
 
     photo = shared("mediapipe", "testdata", "sergey.png")

@@ -62,7 +62,8 @@ class Track(FrameFacts):
     source : str
         The video it came from.
     blendshapes : (T, 52) float64, optional
-        MediaPipe's blendshape scores per frame (Tasks tracker only; NaN where no face).
+        MediaPipe's blendshape scores per frame (NaN where no face); None in tracks saved before the
+        Face Landmarker was faceanim's tracker.
     blendshape_names : tuple of str
 
     Raises
@@ -300,7 +301,7 @@ class _Rows:
 
 class TrackedFrames(NamedTuple):
     """What a pass of the tracker over a video leaves besides the landmarks: per frame whether a face
-    was found and when, the video's rate and size, and the blendshape names (Tasks tracker)."""
+    was found and when, the video's rate and size, and the blendshape names."""
 
     valid: np.ndarray
     times: np.ndarray
@@ -344,14 +345,14 @@ def track_frames(path, faces, shapes, *, options: TrackerOptions | None = None, 
         raise InputError(f"{path}: holds no frames")
     if not any(valid):
         raise InputError(f"{path}: no face was found in any of its {len(valid)} frames")
-    return TrackedFrames(np.array(valid), np.array(times, dtype=np.float64), fps, width, height,
-                         tuple(names) if model is not None else ())
+    return TrackedFrames(np.array(valid), np.array(times, dtype=np.float64), fps, width, height, tuple(names))
 
 
 def track_video(path, *, options: TrackerOptions | None = None, max_gap: float = 0.2,
                 progress=None, model=None) -> Track:
-    """Track the face through a video, an image or an image folder; with ``model`` (a
-    ``face_landmarker.task`` file) through MediaPipe's Tasks API, which adds 52 blendshape scores.
+    """Track the face through a video, an image or an image folder with MediaPipe's Face Landmarker
+    (landmarks and 52 blendshape scores per frame), from faceanim's own model bundle or ``model`` (a
+    ``face_landmarker.task`` file).
     ``progress``: a :class:`~faceanim.progress.Progress` or a bool; None shows a bar when stderr is
     a terminal.
 

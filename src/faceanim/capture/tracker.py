@@ -1,6 +1,8 @@
-"""Face tracking with MediaPipe's face mesh (478 points with iris refinement), offline.
+"""Face tracking with MediaPipe's Face Landmarker (478 points, 52 blendshape scores), offline.
 
-``mediapipe==0.10.21`` ships the FaceMesh models inside its wheel, so nothing is downloaded.
+The model bundle (``face_landmarker.task``, Apache-2.0, 3.8 MB) ships inside the package
+(:data:`DEFAULT_MODEL`, with its licence and source in the same folder), so nothing is downloaded;
+another bundle may be given as ``model``.
 """
 
 from __future__ import annotations
@@ -9,12 +11,15 @@ import contextlib
 import os
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-__all__ = ["FaceTracker", "TaskTracker", "TrackerOptions", "START_FACES", "open_tracker"]
+__all__ = ["FaceTracker", "TaskTracker", "TrackerOptions", "START_FACES", "DEFAULT_MODEL", "open_tracker"]
 
 START_FACES = ("largest", "left", "right")
+DEFAULT_MODEL = Path(__file__).resolve().parent / "models" / "face_landmarker.task"
+"""MediaPipe's Face Landmarker bundle shipped with faceanim (see ``models/SOURCE`` beside it)."""
 
 
 @dataclass(frozen=True)
@@ -61,62 +66,112 @@ def _native_stderr_silenced():
 
 
 class FaceTracker:
-    """Follows one face through a sequence of RGB frames; a context manager.
+    """Follows one face through a sequence of RGB frames with MediaPipe's Face Landmarker; a context
+    manager.
 
-    ``tracker(rgb)`` returns the followed face's ``(478, 3)`` normalised landmarks (x, y in [0, 1]
-    of width and height from the top left, z in width units, smaller nearer), or None when no face is
-    found in the frame. ``tracker.all_faces(rgb)`` returns every face found.
+    ``tracker(rgb, time)`` returns the followed face's ``(478, 3)`` normalised landmarks (x, y in
+    [0, 1] of width and height from the top left, z in width units, smaller nearer), or None when no
+    face is found in the frame; ``time`` (seconds) must grow from frame to frame unless the options
+    say ``static``. After each call ``tracker.blendshapes`` holds that face's 52 blendshape scores
+    ``(52,) float64`` in [0, 1] (None without a face), named by ``tracker.blendshape_names``
+    (MediaPipe's: ``_neutral`` then the 51 ARKit names it scores, ``tongueOut`` not among them), and
+    ``tracker.matrix`` its ``(4, 4)`` facial transformation matrix (MediaPipe's canonical face, cm,
+    into the camera's frame). ``tracker.all_faces(rgb, time)`` returns every face found.
+
+    ``model``: a ``face_landmarker.task`` bundle; :data:`DEFAULT_MODEL` (shipped with faceanim)
+    when None.
+
+    Raises
+    ------
+    InputError
+        ``model`` is not a file, or not a face landmarker bundle MediaPipe can load.
     """
 
-    def __init__(self, options: TrackerOptions | None = None):
+    def __init__(self, options: TrackerOptions | None = None, *, model=None):
+        from ..errors import InputError
+
         os.environ.setdefault("GLOG_minloglevel", "2")  # keep MediaPipe's start-up chatter off the terminal
+        self.options = options or TrackerOptions()
+        self.model = Path(DEFAULT_MODEL if model is None else model)
+        if not self.model.is_file():
+            raise InputError(f"{self.model}: no such model file" + (
+                " (faceanim's own: reinstall faceanim)" if model is None else ""))
         try:
-            from mediapipe.python.solutions import face_mesh
+            import mediapipe
+            from mediapipe.tasks.python import BaseOptions, vision
         except ImportError:
             raise ImportError("face tracking needs MediaPipe: pip install 'faceanim[capture]'") from None
-        self.options = options or TrackerOptions()
-        self._face_mesh = face_mesh
+        self._vision, self._base = vision, BaseOptions
+        self._image, self._format = mediapipe.Image, mediapipe.ImageFormat.SRGB
         self._mesh = None
         self._previous = None
+        self._last_ms = -1
+        self._shapes, self._matrices = [], []
+        self.blendshapes = self.matrix = None
+        self.blendshape_names: tuple[str, ...] = ()
+        self._landmarker(1, static=True).close()  # a bad bundle is refused now, not at the first frame
 
-    def _open(self, faces: int):
+    def _landmarker(self, faces: int, *, static: bool):
+        vision = self._vision
+        mode = vision.RunningMode.IMAGE if static else vision.RunningMode.VIDEO
         o = self.options
-        with _native_stderr_silenced():
-            return self._face_mesh.FaceMesh(
-                static_image_mode=o.static, max_num_faces=faces, refine_landmarks=True,
-                min_detection_confidence=o.min_detection_confidence,
-                min_tracking_confidence=o.min_tracking_confidence)
+        settings = vision.FaceLandmarkerOptions(
+            base_options=self._base(model_asset_path=str(self.model)), running_mode=mode, num_faces=faces,
+            output_face_blendshapes=True, output_facial_transformation_matrixes=True,
+            min_face_detection_confidence=o.min_detection_confidence,
+            min_tracking_confidence=o.min_tracking_confidence)
+        from ..errors import InputError
 
-    def _start(self, rgb: np.ndarray):
-        """Open the mesh for this sequence. MediaPipe looks for new faces in every frame while it
-        tracks fewer than its maximum, which costs a third of its speed; so the first frame is counted
-        and a sequence that starts with one face is tracked as one face."""
-        if self.options.static or self.options.max_faces == 1:
-            self._mesh = self._open(self.options.max_faces)
-            return
-        with _native_stderr_silenced(), self._face_mesh.FaceMesh(
-                static_image_mode=True, max_num_faces=self.options.max_faces, refine_landmarks=False,
-                min_detection_confidence=self.options.min_detection_confidence) as probe:
-            found = probe.process(np.ascontiguousarray(rgb)).multi_face_landmarks or ()
-        self._mesh = self._open(1 if len(found) <= 1 else self.options.max_faces)
-
-    def all_faces(self, rgb: np.ndarray) -> list[np.ndarray]:
-        if self._mesh is None:
-            self._start(rgb)
+        try:
             with _native_stderr_silenced():
-                result = self._mesh.process(np.ascontiguousarray(rgb))
-        else:
-            result = self._mesh.process(np.ascontiguousarray(rgb))
-        faces = []
-        for face in result.multi_face_landmarks or ():
-            faces.append(np.array([(p.x, p.y, p.z) for p in face.landmark], dtype=np.float64))
-        return faces
+                return vision.FaceLandmarker.create_from_options(settings)
+        except (RuntimeError, ValueError) as exc:
+            raise InputError(f"{self.model}: not a MediaPipe face landmarker model ({exc})") from None
 
-    blendshapes = None  # FaceMesh gives none; see TaskTracker
+    def _start(self, image):
+        """Open the landmarker for this sequence. In video mode MediaPipe runs its face detector on
+        every frame while it follows fewer faces than it may, which costs a third of its speed; so the
+        first frame's faces are counted and a sequence that starts with one face is followed as one."""
+        o = self.options
+        if o.static or o.max_faces == 1:
+            self._mesh = self._landmarker(o.max_faces, static=o.static)
+            return
+        with self._landmarker(o.max_faces, static=True) as probe:
+            found = len(probe.detect(image).face_landmarks)
+        self._mesh = self._landmarker(1 if found <= 1 else o.max_faces, static=False)
+
+    def all_faces(self, rgb: np.ndarray, time: float | None = None) -> list[np.ndarray]:
+        image = self._image(image_format=self._format, data=np.ascontiguousarray(rgb))
+        if self._mesh is None:
+            self._start(image)
+            with _native_stderr_silenced():  # the first frame brings TFLite's notices
+                result = self._detect(image, time)
+        else:
+            result = self._detect(image, time)
+        self._shapes = result.face_blendshapes or []
+        self._matrices = result.facial_transformation_matrixes or []
+        return [np.array([(p.x, p.y, p.z) for p in face], dtype=np.float64) for face in result.face_landmarks]
+
+    def _detect(self, image, time: float | None):
+        if self.options.static:
+            return self._mesh.detect(image)
+        ms = max(self._last_ms + 1, int(round(1000 * (time or 0.0))))  # strictly increasing, as VIDEO mode needs
+        self._last_ms = ms
+        return self._mesh.detect_for_video(image, ms)
 
     def __call__(self, rgb: np.ndarray, time: float | None = None) -> np.ndarray | None:
-        faces = self.all_faces(rgb)
-        return faces[self._follow(faces)] if faces else None
+        faces = self.all_faces(rgb, time)
+        self.blendshapes = self.matrix = None
+        if not faces:
+            return None
+        index = self._follow(faces)
+        if index < len(self._shapes):
+            shapes = self._shapes[index]
+            self.blendshape_names = self.blendshape_names or tuple(c.category_name for c in shapes)
+            self.blendshapes = np.array([c.score for c in shapes], dtype=np.float64)
+        if index < len(self._matrices):
+            self.matrix = np.array(self._matrices[index], dtype=np.float64).reshape(4, 4)
+        return faces[index]
 
     def _follow(self, faces) -> int:
         """Index of the face to follow: the chosen one at the start, then the nearest to the last."""
@@ -145,67 +200,14 @@ class FaceTracker:
 
 
 class TaskTracker(FaceTracker):
-    """MediaPipe's Tasks face landmarker, from a ``face_landmarker.task`` bundle the user gives:
-    the same 478 points plus 52 blendshape scores per frame (``self.blendshapes`` after each call,
-    names in ``self.blendshape_names``)."""
+    """:class:`FaceTracker` with the model bundle given first: ``TaskTracker(model, options)`` (the
+    name the Tasks tracker had when FaceMesh was the default)."""
 
-    def __init__(self, model, options: TrackerOptions | None = None):
-        from pathlib import Path
-
-        from ..errors import InputError
-
-        self.options = options or TrackerOptions()
-        self._previous = None
-        self.blendshapes = None
-        self.blendshape_names = ()
-        model = Path(model)
-        if not model.is_file():
-            raise InputError(f"{model}: no such model file")
-        try:
-            from mediapipe.tasks.python import BaseOptions, vision
-        except ImportError:
-            raise ImportError("face tracking needs MediaPipe: pip install 'faceanim[capture]'") from None
-        mode = vision.RunningMode.IMAGE if self.options.static else vision.RunningMode.VIDEO
-        settings = vision.FaceLandmarkerOptions(
-            base_options=BaseOptions(model_asset_path=str(model)), running_mode=mode,
-            num_faces=self.options.max_faces, output_face_blendshapes=True,
-            min_face_detection_confidence=self.options.min_detection_confidence,
-            min_tracking_confidence=self.options.min_tracking_confidence)
-        try:
-            with _native_stderr_silenced():
-                self._mesh = vision.FaceLandmarker.create_from_options(settings)
-        except (RuntimeError, ValueError) as exc:
-            raise InputError(f"{model}: not a MediaPipe face landmarker model ({exc})") from None
-        self._image = __import__("mediapipe").Image
-        self._format = __import__("mediapipe").ImageFormat.SRGB
-        self._last_ms = -1
-
-    def _detect(self, rgb: np.ndarray, time: float | None):
-        image = self._image(image_format=self._format, data=np.ascontiguousarray(rgb))
-        if self.options.static:
-            return self._mesh.detect(image)
-        ms = max(self._last_ms + 1, int(round(1000 * (time or 0.0))))  # strictly increasing, as VIDEO mode needs
-        self._last_ms = ms
-        return self._mesh.detect_for_video(image, ms)
-
-    def all_faces(self, rgb: np.ndarray, time: float | None = None) -> list[np.ndarray]:
-        result = self._detect(rgb, time)
-        self._shapes = result.face_blendshapes or []
-        return [np.array([(p.x, p.y, p.z) for p in face], dtype=np.float64) for face in result.face_landmarks]
-
-    def __call__(self, rgb: np.ndarray, time: float | None = None) -> np.ndarray | None:
-        faces = self.all_faces(rgb, time)
-        if not faces:
-            self.blendshapes = None
-            return None
-        index = self._follow(faces)
-        if index < len(self._shapes):
-            shapes = self._shapes[index]
-            self.blendshape_names = tuple(c.category_name for c in shapes)
-            self.blendshapes = np.array([c.score for c in shapes], dtype=np.float64)
-        return faces[index]
+    def __init__(self, model=None, options: TrackerOptions | None = None):
+        super().__init__(options, model=model)
 
 
 def open_tracker(options: TrackerOptions | None = None, model=None) -> FaceTracker:
-    """The FaceMesh tracker, or the Tasks tracker when a ``face_landmarker.task`` model is given."""
-    return FaceTracker(options) if model is None else TaskTracker(model, options)
+    """The Face Landmarker tracker, from ``model`` (a ``face_landmarker.task`` file) or faceanim's own
+    bundle (:data:`DEFAULT_MODEL`) when None."""
+    return FaceTracker(options, model=model)
