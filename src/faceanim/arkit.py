@@ -1,0 +1,109 @@
+"""``faceanim blendshapes``: a video's ARKit-52 take, written as a Live Link Face CSV.
+
+The Face Landmarker scores 51 of ARKit's 52 shapes on every frame (not ``tongueOut``, written as 0);
+the head's rotation comes from the capture's head pose (MediaPipe's metric face geometry) and each
+eye's from its pupil in the head frame, as FAPs 23-26 measure them. The capture is streamed
+(:func:`~faceanim.inputs.captured_source`): memory holds a few numbers per frame, not the landmarks.
+See :mod:`faceanim.rig.livelink` for the columns, the units and the timecode.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .inputs import captured_source
+from .outputs import check_outputs
+
+__all__ = ["blendshapes", "take_of_capture"]
+
+
+def _neutral_window(neutral) -> tuple[int, int] | None:
+    """``--neutral`` as a frame window: ``FRAME`` or ``START:END``; an image is refused."""
+    from .capture.neutral import parse_neutral
+
+    if neutral is None:
+        return None
+    choice = parse_neutral(str(neutral), 2**62)  # the video's length is checked once it is tracked
+    if not isinstance(choice, tuple):
+        raise InputError(f"--neutral {neutral}: blendshapes takes the neutral as FRAME or START:END (frames)")
+    return choice
+
+
+def take_of_capture(capture, *, neutral: tuple[int, int] | None = None):
+    """The :class:`~faceanim.rig.livelink.Take` of a streamed capture: one row per frame with a face
+    (found, or filled across a short gap: its scores interpolated), weights in [0, 1], and with
+    ``neutral`` (a ``(start, end)`` frame window) the window's mean scores taken off every frame
+    (clipped at 0).
+
+    Raises
+    ------
+    InputError
+        The capture has no blendshape scores (a track saved before faceanim tracked with the Face
+        Landmarker), or no frame of the ``neutral`` window has a face.
+    """
+    from .motion import EYEBALL_RADIUS_ES0, head_angles
+    from .rig.livelink import Take, arkit_weights
+
+    if capture.blendshapes is None:
+        raise InputError(f"{capture.source}: holds no blendshape scores (a track saved by an older faceanim); "
+                         "track the video again")
+    weights = arkit_weights(capture.blendshapes, capture.blendshape_names)
+    found = np.flatnonzero(capture.valid & np.isfinite(weights).all(axis=1))
+    filled = np.flatnonzero(capture.usable & ~np.isin(np.arange(len(weights)), found))
+    for j in range(weights.shape[1]):  # across short gaps, as the landmarks are
+        weights[filled, j] = np.interp(filled, found, weights[found, j])
+    usable = capture.usable
+    if neutral is not None:
+        start, end = neutral
+        if not 0 <= start < end <= len(usable):
+            raise InputError(f"--neutral {start}:{end}: frames must lie in [0, {len(usable)}) with START < END")
+        at = np.arange(start, end)[usable[start:end]]
+        if not len(at):
+            raise InputError(f"--neutral {start}:{end}: no frame of the window has a face")
+        weights = np.clip(weights - weights[at].mean(axis=0), 0.0, 1.0)
+    motion = capture.motion
+    pose = np.zeros((len(usable), 9))
+    turned = motion.pose[:, :3, :3] / np.cbrt(np.linalg.det(motion.pose[:, :3, :3]))[:, None, None]
+    pitch_yaw_roll = head_angles(turned)
+    pose[:, :3] = pitch_yaw_roll[:, [1, 0, 2]]
+    pupils = motion.points_over_time(["3.5", "3.6"]) / (EYEBALL_RADIUS_ES0 * motion.fapu.es0)
+    for eye in range(2):  # left (3.5), right (3.6): yaw towards the face's left, pitch down
+        pose[:, 3 + 3 * eye] = np.arcsin(np.clip(pupils[:, eye, 0], -1, 1))
+        pose[:, 4 + 3 * eye] = -np.arcsin(np.clip(pupils[:, eye, 1], -1, 1))
+    keep = usable & np.isfinite(pose).all(axis=1)
+    times = np.asarray(capture.times)[keep]
+    return Take(times - min(float(times[0]), 0.0), weights[keep], pose[keep], capture.fps)
+
+
+def blendshapes(video, output, *, neutral=None, smoothing: bool = True, progress=None, capture=None):
+    """``faceanim blendshapes``: the ARKit-52 take of ``video`` (or of a saved ``.npz`` track made
+    by the Face Landmarker) written to ``output`` as a Live Link Face CSV; returns ``(take,
+    summary)``, the summary as ``faceanim fap-info`` prints one.
+
+    ``neutral``: ``FRAME`` or ``START:END``; that window's scores are taken off every frame (clipped
+    at 0), and it is the capture's rest (the eyes' zero). ``smoothing``: the One Euro filter on the
+    landmarks (the head and eye angles; the scores are MediaPipe's own). ``capture``: the streamed
+    :class:`~faceanim.capture.stream.Capture` of ``video`` already made, instead of tracking again.
+
+    Raises
+    ------
+    InputError
+        A bad output path or ``--neutral``, a video with no face, a track without blendshape scores.
+    """
+    from .rig.livelink import take_summary, write_livelink_csv
+
+    output = Path(output)
+    check_outputs({"-o": (output, ".csv")}, inputs={"VIDEO": video})
+    window = _neutral_window(neutral)
+    if capture is None:
+        capture = captured_source(video, neutral=neutral, smoothing=smoothing, progress=progress,
+                                  folder=output.parent)
+    take = take_of_capture(capture, neutral=window)
+    write_livelink_csv(output, take)
+    skipped = len(capture.valid) - len(take)
+    note = (f"; neutral frames {window[0]}:{window[1]} removed" if window else "") + (
+        f"; {skipped} frames without a face left out" if skipped else "")
+    return take, take_summary(take, output, note=note)
