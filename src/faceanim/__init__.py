@@ -50,6 +50,7 @@ JOBS = {
     "fap_decompress": ("faceanim.compression", "fap_decompress"),
     "build_speaker": ("faceanim.speech", "build_speaker"),
     "analyse_speech": ("faceanim.speech", "analyse_speech"),
+    "blendshapes": ("faceanim.arkit", "blendshapes"),
 }  # no job shares its name with a module of the package (``faceanim.demo`` is the module; its job is run_demo)
 
 __all__ = ["FileFormatError", "InputError", "JOBS", "Mesh", "RbfWarp", "__version__", "read_mesh", "write_mesh",

@@ -74,7 +74,8 @@ def _parser() -> argparse.ArgumentParser:
 
     p = commands.add_parser("track", help="track the face through a video",
                             description="Track the face in VIDEO (any file FFmpeg reads, an image, or a folder of "
-                                        "images) with MediaPipe's face mesh and save what was seen.")
+                                        "images) with MediaPipe's Face Landmarker (478 landmarks and 52 blendshape "
+                                        "scores per frame) and save what was seen.")
     p.add_argument("video", metavar="VIDEO")
     p.add_argument("-o", "--output", required=True, metavar="TRACK.npz")
     p.add_argument("--overlay", metavar="OVERLAY.mp4", help="also write the video with landmarks and head axes")
@@ -82,7 +83,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--start-face", choices=("largest", "left", "right"), default="largest",
                    help="with several faces, which one to follow (then the nearest in each frame)")
     p.add_argument("--model", metavar="face_landmarker.task",
-                   help="track with MediaPipe's Tasks face landmarker from this bundle; adds 52 blendshape scores")
+                   help="another Face Landmarker model bundle (default: the one shipped with faceanim)")
 
     p = commands.add_parser("encode", help="video or track to an MPEG-4 FAP file",
                             description="Measure the face's motion in VIDEO_OR_TRACK, apart from head motion, as "
@@ -198,6 +199,19 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("video", metavar="VIDEO")
     p.add_argument("-o", "--output", required=True, metavar="AUS.csv")
     _capture_arguments(p, filters="the temporal filters (landmarks and AU curves)")
+
+    p = commands.add_parser("blendshapes", help="ARKit-52 blendshape weights of a video, as a Live Link Face CSV",
+                            description="Track the face with MediaPipe's Face Landmarker and write its blendshape "
+                                        "scores as a Live Link Face take: Timecode (HH:MM:SS:FF.mmm from the video's "
+                                        "own times), BlendShapeCount, the 52 ARKit shapes in Live Link's order "
+                                        "(weights 0-1; TongueOut is 0), head and eye yaw/pitch/roll (radians). "
+                                        "Prints the most active shapes.")
+    p.add_argument("video", metavar="VIDEO")
+    p.add_argument("-o", "--output", required=True, metavar="TAKE.csv")
+    p.add_argument("--neutral", metavar="FRAME|START:END",
+                   help="the face at rest: its scores are taken off every frame (clipped at 0) and it is the eyes' "
+                        "zero (default: scores as MediaPipe gives them, rest found automatically)")
+    p.add_argument("--no-filter", action="store_true", help="turn the One Euro filter (head and eye angles) off")
 
     p = commands.add_parser("plot", help="draw FAP, AU or blendshape curves as a PNG",
                             description="Draw FILE's curves (a .fap file, an AU CSV from faceanim aus or OpenFace, a "
@@ -433,6 +447,12 @@ def _run(args, progress) -> str:
         return f"wrote {args.output}: {len(values)} frames, {len(numbers)} action units"
     if args.command == "fap-info":
         return pipeline.fap_info(args.fap)
+    if args.command == "blendshapes":
+        from .arkit import blendshapes
+
+        _, summary = blendshapes(args.video, args.output, neutral=args.neutral, smoothing=not args.no_filter,
+                                 progress=progress)
+        return f"wrote {summary}"
     if args.command == "fap-compress":
         from .compression import fap_compress
 
