@@ -50,14 +50,33 @@ CURVES = ("a: 30 coded", "b: 30 through the model", "c: 26 through the model", "
 
 
 def payload_bytes(data: bytes) -> int:
-    """The range coder's payload in an ``.fba`` (see fapcoder's container): u32 N words before the check."""
-    # the payload is the last field before the 4-byte check: N u32 words, preceded by u32 N. From N = 0
-    # up, the first match is the payload (a random coder word matches its distance with odds ~ N / 2**32)
-    for words in range(len(data) // 4):
-        at = len(data) - 4 - 4 * words - 4
-        if at >= 0 and struct.unpack_from("<I", data, at)[0] == words:
-            return 4 * words + 4
-    raise ValueError("no payload found")
+    """The range coder's payload in an ``.fba`` (u32 N and N words), found by walking the container's
+    header as ``faceanim.mpeg4.fapcoder``'s docstring lays it out."""
+    from faceanim.mpeg4.fapcoder import _HEAD
+
+    def varint(at):
+        value = shift = 0
+        while True:
+            byte = data[at]
+            value |= (byte & 0x7F) << shift
+            at, shift = at + 1, shift + 7
+            if not byte & 0x80:
+                return value, at
+
+    _, _, flags, _, _, frames, sent = _HEAD.unpack_from(data)
+    at = _HEAD.size
+    at += 1 + data[at]  # the name
+    at += 4 if flags & 1 else 4 * frames  # the frame numbers
+    width = (int(np.unpackbits(np.frombuffer(sent, np.uint8))[:68].sum()) + 7) // 8
+    patterns, at = varint(at)
+    at += patterns * width
+    runs, at = varint(at)
+    for _ in range(2 * runs):
+        _, at = varint(at)
+    words = struct.unpack_from("<I", data, at)[0]
+    if at + 4 + 4 * words + 4 != len(data):
+        raise ValueError("the .fba's layout is not the one this benchmark reads")
+    return 4 + 4 * words
 
 
 def model_stream(motion, model, frames):
@@ -203,6 +222,7 @@ def main() -> None:
 
 def plot(results) -> None:
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -213,6 +233,9 @@ def plot(results) -> None:
             rates = [r for _, r, _, _ in table[name]]
             ax.plot(rates, [p for *_, p in table[name]], style, label=name, markersize=4)
         ax.set_xscale("log")
+        ax.xaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.set_xticks([0.2, 0.5, 1, 2, 5])
         ax.set_title(f"{clip}, {setting}")
         ax.set_xlabel("kbit/s (whole .fba)")
         ax.set_ylabel("FAP PSNR (dB)")
