@@ -51,6 +51,7 @@ JOBS = {
     "build_speaker": ("faceanim.speech", "build_speaker"),
     "analyse_speech": ("faceanim.speech", "analyse_speech"),
     "blendshapes": ("faceanim.arkit", "blendshapes"),
+    "make_rig": ("faceanim.rigging", "make_rig"),
 }  # no job shares its name with a module of the package (``faceanim.demo`` is the module; its job is run_demo)
 
 __all__ = ["FileFormatError", "InputError", "JOBS", "Mesh", "RbfWarp", "__version__", "read_mesh", "write_mesh",

@@ -154,6 +154,22 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("photo", metavar="PHOTO", help="an image (or a video, whose first frame is used)")
     p.add_argument("-o", "--output", required=True, metavar="FACE.glb")
 
+    p = commands.add_parser("rig", help="the 52 ARKit blendshapes on any face mesh, as a .glb",
+                            description="Make the 52 ARKit blendshapes (browDownLeft ... jawOpen ... tongueOut) on "
+                                        "a face mesh by carrying ICT-FaceKit's expression shapes through a dense "
+                                        "registration of ICT's head onto it. The .glb keeps the mesh's vertices in "
+                                        "their order, with the shapes as morph targets named as ARKit names them "
+                                        "(tongueOut empty: ICT has no tongue shape) and its control points.")
+    p.add_argument("target", metavar="TARGET", help="the face mesh (.obj, .glb, .ply), looking along +z with +y up")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--points", metavar="POINTS.json",
+                       help='control points as {"mp33": vertex id, ...} (the 68 iBUG points by MediaPipe index) or '
+                            'MPEG-4 feature points (default: those a faceanim .glb carries, else placed automatically)')
+    group.add_argument("--fdp", metavar="FILE.fdp", help="control points from an XfaceEd .fdp file")
+    p.add_argument("--ict", metavar="DIR", help="ICT-FaceKit's folder (ict_deltas_full.npz, obj/, "
+                                                "landmarks_multipie68.json; default: $FACEANIM_ICT_FACEKIT)")
+    p.add_argument("-o", "--output", required=True, metavar="RIGGED.glb")
+
     p = commands.add_parser("demo", help="run the whole chain on embedded material (no downloads)",
                             description="Make a 3D avatar from the astronaut portrait scikit-image ships, film it "
                                         "performing a scripted expression sequence (the photo warped by RBF), then "
@@ -409,6 +425,12 @@ def _run(args, progress) -> str:
     if args.command == "avatar":
         target = pipeline.avatar(args.photo, args.output)
         return f"wrote {args.output}: {len(target.mesh.vertices)} vertices, {len(target.points)} control points"
+    if args.command == "rig":
+        from .rigging import make_rig
+
+        made = make_rig(args.target, args.output, points=args.points, fdp=args.fdp, ict=args.ict, progress=progress)
+        return (f"wrote {args.output}: {len(made.names)} ARKit shapes on {len(made.target.mesh.vertices)} vertices "
+                f"(pairs: {made.layout}; registration fit {made.fit:.4f}, landmarks {made.landmark_error:.4f})")
     if args.command == "demo":
         from .demo import run_demo, view_command
 

@@ -3,9 +3,13 @@
 ICT's neutral head is registered onto the target densely (a thin-plate warp through the control
 pairs, then non-rigid ICP with the face's contours matched as curves;
 :mod:`~faceanim.retarget.correspondence`); each target vertex lands on the registered ICT surface and
-takes the displacement there (:class:`~faceanim.retarget.DenseTransfer`). The displacements are turned
-and scaled into the target's frame and unit by the similarity that best maps ICT's control points onto
-the target's (so a target in metres or turned a little gets shapes in its own metres and axes).
+takes the displacement there (:class:`~faceanim.retarget.DenseTransfer`). The displacements keep ICT's
+sizes, in the target's unit: ICT's centimetres times the power of ten nearest the scale that best maps
+ICT's control points onto the target's (a target in metres gets shapes in metres). They are not scaled
+to the target's face size nor turned: ICT adds the same expression shapes to every identity, and a
+similarity fitted between two different faces turns and scales them by the faces' difference in shape
+(on the tuning draw of ``benchmarks/rig_ict.py``, median error 0.20 -> 0.27). Axes are the house's:
++y up, +z out of the face, as automatic placement needs.
 
 The control pairs are the 68 iBUG / Multi-PIE points, on the target MediaPipe's points of that layout
 (``mp<i>`` through :data:`~faceanim.capture.landmarks.IBUG68_LANDMARK`). Where the target's points
@@ -104,11 +108,13 @@ def make_arkit_rig(target: Target, ict: IctFaceKit) -> ArkitRig:
         the residuals reached).
     """
     source_ids, target_ids, layout = control_pairs(ict, target)
-    pairs = ControlPairs.checked(source_ids, target_ids, len(ict.mesh.vertices), len(target.mesh.vertices))
+    # Not ControlPairs.checked: on a coarse mesh two points may snap to one vertex, which the registration
+    # takes (two landmarks pulled to one place) and the layout's contours need in their places.
+    pairs = ControlPairs(source_ids, target_ids)
     dense = DenseTransfer(ict.mesh, target.mesh, pairs, contours=layout)
     similarity = weighted_procrustes(ict.mesh.vertices[source_ids], target.mesh.vertices[target_ids])
-    turn = similarity[:3, :3]  # s R: ICT's cm and axes into the target's unit and axes
-    deltas = np.stack([ict.delta(ICT_SHAPES[name]) @ turn.T for name in ARKIT_NAMES], axis=1)  # (Vs, 52, 3)
+    unit = 10.0 ** np.round(np.log10(np.cbrt(np.linalg.det(similarity[:3, :3]))))  # target units per ICT cm
+    deltas = unit * np.stack([ict.delta(ICT_SHAPES[name]) for name in ARKIT_NAMES], axis=1)  # (Vs, 52, 3)
     carried = dense.matrix @ deltas.reshape(len(deltas), -1)
     shapes = np.ascontiguousarray(np.asarray(carried).reshape(len(target.mesh.vertices), len(ARKIT_NAMES), 3)
                                   .transpose(1, 0, 2))
