@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Literal
 from urllib.parse import urlsplit
 
-from ..errors import InputError
+from ..errors import FileFormatError, InputError
 
 __all__ = ["ViewerFiles", "ViewerServer", "free_port", "parse_range", "HOST"]
 
@@ -81,7 +81,8 @@ class ViewerServer:
     Parameters
     ----------
     files : ViewerFiles
-        What to show. The model and the video must be regular files (:class:`InputError` otherwise).
+        What to show. The model and the video must be regular files (:class:`InputError` otherwise), and
+        the model a complete glTF binary (:class:`FileFormatError` otherwise, see :func:`_check_glb`).
     port : int
         The port on 127.0.0.1; 0 picks a free one (see ``self.port``).
     timeout : float
@@ -102,6 +103,7 @@ class ViewerServer:
         self._files = []
         try:
             self._files.append(_OpenedFile(files.model))
+            _check_glb(self._files[-1], files.model)
             routes["/files/model.glb"] = (self._files[-1], _type(files.model.name))
             if files.video is not None:
                 config["video"] = "/files/source" + files.video.suffix.lower()
@@ -258,6 +260,42 @@ class _OpenedFile:
 
     def close(self) -> None:
         os.close(self._fd)
+
+
+_GLB_MAGIC, _GLB_JSON = b"glTF", b"JSON"
+
+
+def _check_glb(opened: _OpenedFile, path: Path) -> None:
+    """Refuse, naming ``path``, a model that is not a complete glTF binary as the descriptor reads it:
+    the ``glTF`` magic, version 2, a declared length equal to the file's, then chunks (the first one
+    JSON) that each lie inside the file and together fill it. A file cut short (a copy in progress, a
+    full disk) would otherwise be served, and fail in the browser with no word said."""
+    size = len(opened)
+    header = opened.read(0, 12)
+
+    def refuse(why: str):
+        return FileFormatError(path, f"is not a complete glTF binary ({why})")
+
+    if len(header) < 12 or header[:4] != _GLB_MAGIC:
+        raise refuse("no glTF header")
+    version, length = int.from_bytes(header[4:8], "little"), int.from_bytes(header[8:12], "little")
+    if version != 2:
+        raise refuse(f"version {version}; the viewer shows glTF 2")
+    if length != size:
+        raise refuse(f"its header declares {length} bytes, the file holds {size}")
+    offset, first = 12, True
+    while offset < length:
+        chunk = opened.read(offset, 8)
+        if len(chunk) < 8:
+            raise refuse(f"a chunk header at byte {offset} is cut short")
+        chunk_length, kind = int.from_bytes(chunk[:4], "little"), chunk[4:8]
+        if offset + 8 + chunk_length > length:
+            raise refuse(f"the chunk at byte {offset} declares {chunk_length} bytes; {length - offset - 8} follow")
+        if first and kind != _GLB_JSON:
+            raise refuse("its first chunk is not JSON")
+        offset, first = offset + 8 + chunk_length, False
+    if first:
+        raise refuse("it holds no chunk")
 
 
 def _bind(port: int, routes: dict, *, timeout: float, workers: int) -> _Server:
