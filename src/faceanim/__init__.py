@@ -6,7 +6,7 @@ scipy. See ``shared/ARCHITECTURE.md`` for the house plan.
 The jobs the ``faceanim`` command runs are functions here, with the command's options as keyword
 arguments (``--no-filter`` is ``smoothing=False``, ``--start-face`` is ``start_face=``); each writes
 its outputs complete or not at all and returns what it made. They import lazily, so ``import
-faceanim`` stays light (numpy, scipy, trimesh) until one is called::
+faceanim`` stays light (the standard library alone; numpy and scipy come with the first job or type used)::
 
     import faceanim
 
@@ -28,7 +28,12 @@ from __future__ import annotations
 import importlib
 
 from .errors import FileFormatError, InputError
-from .geometry import Mesh, RbfWarp, read_mesh, write_mesh
+
+# The core's types and readers, by name: imported on first use too, so that ``import faceanim`` (and the
+# command's ``import faceanim.cli``) loads nothing beyond the standard library, and a Ctrl-C while numpy
+# and scipy load lands inside the command, which says so in one line.
+_CORE = {"Mesh": "faceanim.geometry", "RbfWarp": "faceanim.geometry", "read_mesh": "faceanim.geometry",
+         "write_mesh": "faceanim.geometry"}
 
 __version__ = "0.1.0"
 
@@ -59,8 +64,8 @@ __all__ = ["FileFormatError", "InputError", "JOBS", "Mesh", "RbfWarp", "__versio
 
 
 def __getattr__(name: str):
-    if name in JOBS:
-        module, attribute = JOBS[name]
+    if name in JOBS or name in _CORE:
+        module, attribute = JOBS[name] if name in JOBS else (_CORE[name], name)
         job = getattr(importlib.import_module(module), attribute)
         globals()[name] = job  # once imported, an ordinary attribute
         return job
@@ -68,4 +73,4 @@ def __getattr__(name: str):
 
 
 def __dir__():
-    return sorted(set(globals()) | set(JOBS))
+    return sorted(set(globals()) | set(JOBS) | set(_CORE))

@@ -293,7 +293,21 @@ def main(argv=None) -> int:
     (:func:`faceanim.atomic.output_group`), so a failure or an interrupt leaves none of them, and the
     files that were at their paths before stay as they were (the demo puts each step's outputs in
     place when the step ends, so it loses only the step it was in).
+
+    The declared errors are :class:`~faceanim.errors.InputError` and its :class:`~faceanim.errors.FileFormatError`;
+    a plain ``ValueError`` (a library function's contract on its arrays, broken by faceanim's own code)
+    is a bug like any other. An interrupt while faceanim is still importing its parts (before any job
+    starts; ``import faceanim.cli`` itself imports nothing heavy) ends the same way: one line, 130.
     """
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # during parsing or the imports, before the job's own handlers are set
+        print("faceanim: interrupted", file=sys.stderr)
+        return 128 + signal.SIGINT
+
+
+def _main(argv) -> int:
+    """:func:`main` once the interrupts before the job are caught."""
     args = _parser().parse_args(argv)
     from .atomic import output_group
     from .progress import Interrupted, Progress, Quiet
@@ -318,9 +332,6 @@ def main(argv=None) -> int:
         print(("\n" if shown else "") + "faceanim: interrupted", file=sys.stderr)
         return 128 + getattr(exc, "signum", signal.SIGINT)
     except (InputError, OSError) as exc:
-        print(f"faceanim: error: {exc}", file=sys.stderr)
-        return 2
-    except ValueError as exc:  # an argument the library rejected (shapes, ids, settings)
         print(f"faceanim: error: {exc}", file=sys.stderr)
         return 2
     if said:

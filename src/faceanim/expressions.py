@@ -96,8 +96,9 @@ def au_fap_table(face, codes, fields) -> dict:
     return table
 
 
-def _generic_carrier(target):
-    """The generic face and the map carrying its displacements onto ``target`` (warp + projection)."""
+def _generic_carrier(target, named: str = "the target"):
+    """The generic face and the map carrying its displacements onto ``target`` (warp + projection);
+    ``named``, where the target's points come from, for the errors."""
     from .generic import generic_target
     from .retarget.transfer import ControlPairs, DenseTransfer
     from .synth import MuscleFace
@@ -107,12 +108,19 @@ def _generic_carrier(target):
     if len(shared) < 8:
         raise InputError(f"the generic route needs the target's MPEG-4 feature points; it shares only "
                          f"{len(shared)} with the generic face")
+    ids = target.ids(shared)
+    vertices, counts = np.unique(ids, return_counts=True)
+    if (counts > 1).any():  # the generic face's points are distinct: two of them cannot land on one vertex
+        vertex = vertices[counts > 1][0]
+        names = " and ".join(n for n, i in zip(shared, ids, strict=True) if i == vertex)
+        raise InputError(f"{named}: the generic route needs each feature point on its own vertex; {names} share "
+                         f"vertex {vertex}")
     pairs = ControlPairs.checked(source.ids(shared), target.ids(shared), len(source.mesh.vertices),
                                  len(target.mesh.vertices))
     return MuscleFace(source), DenseTransfer(source.mesh, target.mesh, pairs)
 
 
-def _target_fields(target, recipe, frames, route):
+def _target_fields(target, recipe, frames, route, named: str = "the target"):
     """The target's displacement per frame as ``fields(start, stop) -> (stop - start, V, 3)``, the
     number of frames (1 for a still), the recipe made at the apex (after the exaggeration guard,
     which warns once there), and the target as a muscle face. Frames are made when asked for, so
@@ -124,7 +132,7 @@ def _target_fields(target, recipe, frames, route):
     if route == "direct":
         face, carry = target_face, None
     else:
-        face, carry = _generic_carrier(target)
+        face, carry = _generic_carrier(target, named)
     apex, made = synthesise(face, recipe)
     weights = np.ones(1) if frames is None else envelope(frames)
 
@@ -177,7 +185,8 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
     target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
     if output.suffix.lower() == ".glb":  # refused now, not after the muscles' work, if of no human size
         unit = target_unit(target, str(target_mesh) if target_mesh is not None else "the target")
-    fields, count, made, face = _target_fields(target, recipe, None if frames is None else int(frames), route)
+    named = next((str(p) for p in (points, fdp, target_mesh) if p is not None), "the target")
+    fields, count, made, face = _target_fields(target, recipe, None if frames is None else int(frames), route, named)
     rest = target.mesh.vertices
     animation = Animation.streamed(target.mesh, lambda a, b: rest + fields(a, b), count, fps)
     suffix = output.suffix.lower()

@@ -77,6 +77,21 @@ def read_vertex_mask(path, vertex_count: int) -> np.ndarray:
     return allowed
 
 
+def _check_clone_pairs(source, ids, correspondence) -> None:
+    """The clone method first warps the source onto the target through the pairs (thin-plate, with an
+    affine part): it needs at least 4 of them, at distinct places on the source, not all in one plane."""
+    from .geometry import RbfWarp
+
+    if len(ids) < 4:
+        raise InputError(f"{correspondence}: the clone method needs at least 4 pairs, got {len(ids)} "
+                         "(--method rbf takes fewer)")
+    try:  # the warp the registration starts from, made once here on the control points alone
+        RbfWarp(source.vertices[ids], np.zeros((len(ids), 3)), kernel="thin_plate")
+    except ValueError as exc:  # finite (K, 3) points, K >= 4: only coincident or flat control points are left
+        raise InputError(f"{correspondence}: the source's control points cannot start the clone method's warp "
+                         f"({exc}; pairs counted from 0)") from None
+
+
 def transfer(source_neutral, source_expression, target, output, *, correspondence, method: str = "clone",
              mask=None, regions: tuple[str, ...] = (), force: bool = False) -> Path:
     """``faceanim transfer``: write ``target`` wearing the source's expression to ``output``.
@@ -108,6 +123,8 @@ def transfer(source_neutral, source_expression, target, output, *, correspondenc
         pairs = ControlPairs.checked(source_ids, target_ids, len(src0.vertices), len(dst.vertices))
     except ValueError as exc:
         raise InputError(f"{correspondence}: {exc}") from None
+    if method == "clone":
+        _check_clone_pairs(src0, pairs.source, correspondence)
     allowed = None
     if mask is not None:
         allowed = read_vertex_mask(mask, len(dst.vertices))

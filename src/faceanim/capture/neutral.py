@@ -36,7 +36,9 @@ def relaxed_window(points, usable, fps: float, *, seconds: float = 0.5, mouth=No
         before = p[max(start - 1, 0):start + len(block) - 1]
         steps = np.sqrt(((block[len(block) - len(before):] - before) ** 2).sum(-1).mean(-1)) * fps
         speed[start + len(block) - len(steps):start + len(block)] = steps
-    score = spread + 0.1 * speed / max(fps, 1.0)
+    # A frame after one without a face has no speed (NaN): it is scored by its spread alone, so that a
+    # face seen in single frames between gaps is still chosen, never a window without a face.
+    score = spread + 0.1 * np.nan_to_num(speed, nan=0.0) / max(fps, 1.0)
     if mouth is not None:
         gap = np.asarray(mouth, dtype=np.float64)
         score = score + np.maximum(gap - np.nanmedian(gap[usable]), 0)

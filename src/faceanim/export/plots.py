@@ -204,10 +204,25 @@ def plot(source, output, *, title: str | None = None) -> list[Panel]:
     x, xlabel, panels = curve_panels(source)
     if not panels:
         raise InputError(f"{source}: no curve holds a value to plot")
+    _check_axes(source, x, xlabel, panels)
     png = figure_png(x, xlabel, panels, title=title or Path(source).name)
     with atomic_output(output, suffix=".png") as tmp:
         tmp.write_bytes(png)
     return panels
+
+
+_LARGEST = 1e300  # the largest value a plot's axis takes, with room for its margins and tick steps
+
+
+def _check_axes(source, x, xlabel: str, panels: list[Panel]) -> None:
+    """Refuse, naming the file, an axis with a value beyond 1e300 in magnitude: no scale can show it
+    (the axis' span or its margins overflow a float, and matplotlib's tick locator fails)."""
+    for label, values in [(xlabel, np.asarray(x, dtype=np.float64)),
+                          *((name, curve) for panel in panels for name, curve in panel.curves.items())]:
+        finite = np.abs(values[np.isfinite(values)])
+        if len(finite) and finite.max() > _LARGEST:
+            raise FileFormatError(source, f"{label} reaches {finite.max():g} in magnitude; a plot's axis holds "
+                                          f"values up to {_LARGEST:g}")
 
 
 def fap_png(stream, *, title: str, dpi: int = 100) -> bytes:

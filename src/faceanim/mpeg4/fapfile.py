@@ -67,7 +67,7 @@ def read_fap(path) -> FapStream:
     FileFormatError
         A bad header, a mask that is not 68 zeros and ones, a missing or short value line, a
         non-numeric or non-finite token, a frame number or FAP 1/2 field that is not whole (or out of
-        32 bits), decreasing frame numbers, no frames, or a frame count that disagrees with the
+        32 bits), a value out of 32 bits, decreasing frame numbers, no frames, or a frame count that disagrees with the
         header; the message names the file and line. Values outside their MPEG-4 range are kept (see
         :meth:`FapStream.out_of_range`), never clipped.
     """
@@ -119,6 +119,10 @@ def read_fap(path) -> FapStream:
                 fields[:] = [_whole(v, t, path, value_line, f"FAP {fap} field", low=-_WHOLE)
                              for v, t in zip(numbers[:width], value_tokens[at:at + width], strict=True)]
                 numbers, at = numbers[width:], at + width
+        big = next((t for v, t in zip(numbers, value_tokens[at:], strict=True) if not -_WHOLE < v < _WHOLE), None)
+        if big is not None:  # FAP values are counts of FAPU; beyond 32 bits, they overflow what they move
+            raise FileFormatError(path, f"value {big} is beyond 32 bits (FAP values lie within +-{_WHOLE - 1})",
+                                  value_line)
         row[2:][mask[2:]] = numbers
         frames.append(frame)
         values.append(row)
@@ -143,12 +147,13 @@ def write_fap(path, stream: FapStream) -> None:
     """Write ``stream`` as a version 2.1 ``.fap`` file, complete or not at all.
 
     Values are rounded to integers (the format's unit is one FAPU count) and fps to a whole number;
-    a rate that rounds to none (below 0.5 fps) or beyond what :func:`read_fap` reads is refused
-    (ValueError) before anything is written.
+    a rate that rounds to none (below 0.5 fps) or beyond what :func:`read_fap` reads is refused before
+    anything is written, with an :class:`~faceanim.errors.InputError` naming ``path``: the rate is the
+    video's or the user's (``--fps``), not a fault of the caller.
     """
     if not 1 <= round(stream.fps) <= _FPS_RANGE[1]:
-        raise ValueError(f"a .fap holds a whole frame rate from 1 to {_FPS_RANGE[1]:g}; {stream.fps:g} fps rounds "
-                         f"to {round(stream.fps)}")
+        raise InputError(f"{path}: a .fap holds a whole frame rate from 1 to {_FPS_RANGE[1]:g}; {stream.fps:g} fps "
+                         f"rounds to {round(stream.fps)}")
     lines = [f"2.1 {stream.name} {round(stream.fps)} {len(stream)}"]
     rounded = np.rint(stream.values).astype(np.int64)
     for t in range(len(stream)):
