@@ -33,7 +33,7 @@ from .errors import FileFormatError, InputError
 # command's ``import faceanim.cli``) loads nothing beyond the standard library, and a Ctrl-C while numpy
 # and scipy load lands inside the command, which says so in one line.
 _CORE = {"Mesh": "faceanim.geometry", "RbfWarp": "faceanim.geometry", "read_mesh": "faceanim.geometry",
-         "write_mesh": "faceanim.geometry"}
+         "write_mesh": "faceanim.geometry", "read_livelink_csv": "faceanim.rig.livelink"}
 
 __version__ = "0.1.0"
 
@@ -59,8 +59,8 @@ JOBS = {
     "make_rig": ("faceanim.rigging", "make_rig"),
 }  # no job shares its name with a module of the package (``faceanim.demo`` is the module; its job is run_demo)
 
-__all__ = ["FileFormatError", "InputError", "JOBS", "Mesh", "RbfWarp", "__version__", "read_mesh", "write_mesh",
-           *JOBS]
+__all__ = ["FileFormatError", "InputError", "JOBS", "Mesh", "RbfWarp", "__version__", "read_livelink_csv", "read_mesh",
+           "write_mesh", *JOBS]
 
 
 def __getattr__(name: str):
