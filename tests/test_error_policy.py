@@ -142,7 +142,7 @@ def test_a_saved_track_without_a_face(tmp_path, capsys, portrait_track, command)
     is refused when tracked; a saved .npz was not)."""
     _track_of(portrait_track, 12, []).save(tmp_path / "t.npz")
     out = tmp_path / ("t.fap" if command == "encode" else "t.csv")
-    refused(capsys, [command, tmp_path / "t.npz", "-o", out], names=portrait_track.source,
+    refused(capsys, [command, tmp_path / "t.npz", "-o", out], names=tmp_path / "t.npz",
             says="holds no frame with a face (12 frames)", outputs=[out])
 
 
@@ -314,3 +314,35 @@ def test_the_server_checks_the_model_it_opened(tmp_path):
     (tmp_path / "model.glb").write_bytes(data)
     with ViewerServer(ViewerFiles(tmp_path / "model.glb"), port=0) as server:
         assert server.port > 0
+
+
+# ---- saved tracks that no capture can use, and a neutral window given before the length is known
+
+
+def _saved_track(path, landmarks, valid):
+    from faceanim.capture.track import Track
+
+    Track(landmarks, valid, np.zeros(len(valid), bool), np.arange(len(valid)) / 25.0, 25.0, 64, 64).save(path)
+    return path
+
+
+def test_a_saved_track_with_a_flat_face_is_one_line(tmp_path, capsys):
+    """Such a track reached the head frame's fit: 'SVD did not converge', a traceback."""
+    landmarks = np.random.default_rng(0).random((5, 478, 3))
+    landmarks[2, :, :2] = 0.5  # every landmark of frame 2 on one pixel
+    flat = _saved_track(tmp_path / "flat.npz", landmarks, np.ones(5, bool))
+    refused(capsys, ["aus", flat, "-o", tmp_path / "f.csv"], names=flat, says="frame 2's landmarks do not span",
+            outputs=[tmp_path / "f.csv"])
+    landmarks[2, :, 0] = np.linspace(0.2, 0.8, 478)  # on a line: no area either
+    line = _saved_track(tmp_path / "line.npz", landmarks, np.ones(5, bool))
+    refused(capsys, ["encode", line, "-o", tmp_path / "l.fap"], names=line, says="frame 2's landmarks do not span")
+
+
+@pytest.mark.skipif(not shared("videos", "d0.mp4").exists(), reason="needs ../shared/data/videos/d0.mp4")
+def test_a_neutral_window_is_checked_before_tracking_and_again_against_the_length(tmp_path, capsys):
+    video = shared("videos", "d0.mp4")
+    said = refused(capsys, ["encode", video, "-o", tmp_path / "a.fap", "--neutral", "5:5"], names="--neutral 5:5",
+                   says="START < END", outputs=[tmp_path / "a.fap"])
+    assert "4611686018427387904" not in said  # no made-up length in the message
+    refused(capsys, ["encode", video, "-o", tmp_path / "b.fap", "--neutral", "100000:100010"],
+            names="--neutral 100000:100010", says="frames must lie in [0, ", outputs=[tmp_path / "b.fap"])

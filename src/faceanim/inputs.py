@@ -107,7 +107,7 @@ def _neutral_choice(neutral, given) -> dict:
 
     if neutral is None:
         return {}
-    choice = parse_neutral(str(neutral), len(given) if isinstance(given, Track) else 2**62)
+    choice = parse_neutral(str(neutral), len(given) if isinstance(given, Track) else None)
     if isinstance(choice, tuple):
         return {"neutral": choice}  # a video's length is known once tracked: captured checks the window then
     still = track_video(choice, options=TrackerOptions(static=True), progress=False)
@@ -127,7 +127,7 @@ def _check_neutral_image(neutral) -> None:
     """A ``--neutral`` that is no frame range names an image (or video, or folder of images) that exists."""
     from .capture.neutral import parse_neutral
 
-    choice = parse_neutral(str(neutral), 2**62)  # any frame range passes here; the track's length is checked later
+    choice = parse_neutral(str(neutral))  # the track's length is checked once it is known
     if not isinstance(choice, tuple) and not Path(choice).exists():
         raise InputError(f"--neutral {choice}: no such image, or frame number (FRAME or START:END)")
 

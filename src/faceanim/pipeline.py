@@ -373,7 +373,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     check_outputs({"-o": (output, ".glb"), "--fap": (fap, ".fap"), "--preview": (preview, ".mp4"),
                    "--csv": (csv, ".csv"), "--obj-sequence": (obj_sequence, SEQUENCE_FOLDER)},
                   inputs={"VIDEO": video, "--target": target_mesh, "--points": points, "--fdp": fdp, "--parts": parts})
-    if neutral is not None and not isinstance(parse_neutral(str(neutral), 2**62), tuple):
+    if neutral is not None and not isinstance(parse_neutral(str(neutral)), tuple):
         raise InputError("animate takes the neutral as FRAME or START:END")  # said before any work is done
     shown = as_progress(progress)
     target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)

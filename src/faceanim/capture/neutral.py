@@ -51,8 +51,10 @@ def relaxed_window(points, usable, fps: float, *, seconds: float = 0.5, mouth=No
     return start, start + width
 
 
-def parse_neutral(spec: str, frame_count: int):
+def parse_neutral(spec: str, frame_count: int | None = None):
     """Read ``--neutral``: ``FRAME``, ``START:END`` (frames, end exclusive) or an image path.
+    ``frame_count``: the video's length, or None where it is not known yet (a video not yet
+    tracked: the window is checked against it once it is).
 
     Returns ``(start, end)`` or the image path as a string.
     """
@@ -67,6 +69,8 @@ def parse_neutral(spec: str, frame_count: int):
             end = start + 1
     except ValueError:
         return text  # an image
-    if not 0 <= start < end <= frame_count:
+    if frame_count is None and not 0 <= start < end:
+        raise InputError(f"--neutral {spec}: frames count from 0, with START < END")
+    if frame_count is not None and not 0 <= start < end <= frame_count:
         raise InputError(f"--neutral {spec}: frames must lie in [0, {frame_count}) with START < END")
     return start, end

@@ -159,9 +159,33 @@ class Track(FrameFacts):
             raise InputError(f"{path}: no such file")
         fields = _read_npz(path)
         try:
-            return cls(**fields)
+            track = cls(**fields)
         except (TypeError, ValueError) as exc:  # the Track's own checks of what the file holds
             raise FileFormatError(path, f"is not a faceanim track ({exc})") from None
+        if not track.usable.any():
+            raise FileFormatError(path, f"holds no frame with a face ({len(track)} frames)")
+        flat = _first_flat_frame(track)
+        if flat is not None:  # the tracker never makes one; a head frame cannot be fitted to it
+            raise FileFormatError(path, f"frame {flat}'s landmarks do not span the image (all on a point or a "
+                                        "line); it is not a tracked face")
+        return track
+
+
+def _first_flat_frame(track: Track, block: int = 4096) -> int | None:
+    """The first frame with a face whose landmarks span no area in the image (all on one point or a
+    line), or None."""
+    usable = np.flatnonzero(track.usable)
+    for start in range(0, len(usable), block):
+        frames = usable[start:start + block]
+        xy = track.landmarks[frames, :, :2]
+        centred = xy - xy.mean(axis=1, keepdims=True)
+        # the smaller singular value of each frame's 2-D spread, against its size
+        cov = np.einsum("tli,tlj->tij", centred, centred)
+        smallest = np.linalg.eigvalsh(cov)[:, 0]
+        flat = smallest <= 1e-12 * np.maximum(np.trace(cov, axis1=1, axis2=2), 1e-300)
+        if flat.any():
+            return int(frames[np.argmax(flat)])
+    return None
 
 
 _NUMBERS = "iuf"  # numpy kinds of real numbers (not bool, complex, strings, dates)
