@@ -3,7 +3,7 @@
     python benchmarks/landmarks_dlib.py
 
 For each face box in ``../shared/data/dlib_faces/training_with_face_landmarks.xml`` (4 PASCAL VOC
-photos, 18 faces, points from dlib's 68-point model), MediaPipe's face mesh runs on the box's
+photos, 18 faces, points from dlib's 68-point model), MediaPipe's Face Landmarker runs on the box's
 surroundings (faces in these photos are small: 15-48 px between the eyes), its 478 points are mapped to the 68 layout
 (``faceanim.capture.landmarks.IBUG68_LANDMARK``), and the normalised mean error is taken: mean point
 distance over the distance between the outer eye corners (points 36 and 45), the usual iBUG measure.

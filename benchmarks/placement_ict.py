@@ -2,7 +2,7 @@
 
     python benchmarks/placement_ict.py
 
-The untextured ICT head is rendered (lit from above), MediaPipe's face mesh runs on the render, its
+The untextured ICT head is rendered (lit from above), MediaPipe's Face Landmarker runs on the render, its
 points are cast back onto the surface (``faceanim.retarget.placement``) and mapped to the 68-point
 layout; the table gives the distance (cm) of each group from ICT's landmark vertices.
 """

@@ -289,9 +289,9 @@ def main(argv=None) -> int:
     lines = ["# End to end on ICT-FaceKit: render, track, another face", "",
              f"`python benchmarks/roundtrip_ict.py --seed {args.seed}`. Source: identity A rendered (512 px, front) "
              "performing the script; target: identity B, control points placed automatically; `faceanim animate` "
-             "with the neutral on frames 0-9 (MediaPipe face mesh, head pose, One Euro filter, then B). Relative "
-             "error over B's face area on frames where the expression is at least half on: 0 is exact, 1 is no "
-             "better than not moving.", "",
+             "with the neutral on frames 0-9 (MediaPipe's Face Landmarker, head pose, One Euro filter, then B). "
+             "Relative error over B's face area on frames where the expression is at least half on: 0 is exact, "
+             "1 is no better than not moving.", "",
              "Sources: *portrait*: A's face and eyeballs coloured from the astronaut photo scikit-image ships, "
              "carried across by MediaPipe's points on both (`portrait_face`), lit from above; "
              "*painted*: skin, eyebrows and lips painted on A (`painted_face`), lit from above; "
