@@ -71,6 +71,26 @@ def test_the_default_track_has_52_blendshapes_without_a_model_given():
     assert weights["tongueOut"] == 0.0  # MediaPipe does not score it
 
 
+def test_the_tracker_hands_out_mediapipes_head_matrix_and_refuses_a_bad_bundle(tmp_path):
+    pytest.importorskip("mediapipe", reason="capture needs faceanim[capture]")
+    from PIL import Image
+
+    from faceanim.capture.tracker import FaceTracker, TrackerOptions
+    from faceanim.errors import InputError
+
+    rgb = np.asarray(Image.open(shared("mediapipe", "testdata", "sergey.png")).convert("RGB"))
+    with FaceTracker(TrackerOptions(static=True)) as tracker:
+        assert tracker(rgb).shape == (478, 3) and tracker.blendshapes.shape == (52,)
+        turn = tracker.matrix[:3, :3] / np.cbrt(np.linalg.det(tracker.matrix[:3, :3]))
+        np.testing.assert_allclose(turn @ turn.T, np.eye(3), atol=1e-4)  # a rotation (canonical face -> camera)
+        assert turn[2, 2] > 0.9  # a frontal portrait: the face looks at the camera
+    (tmp_path / "fake.task").write_bytes(b"PK not a bundle")
+    with pytest.raises(InputError, match="fake.task: not a MediaPipe face landmarker model"):
+        FaceTracker(model=tmp_path / "fake.task")
+    with pytest.raises(InputError, match="nothing.task: no such model file"):
+        FaceTracker(model=tmp_path / "nothing.task")
+
+
 # ---- the CSV's columns and timecodes
 
 
