@@ -391,3 +391,11 @@ def test_decompress_through_a_speaker_model_fills_in_the_faps_not_sent(tmp_path,
     back = read_fap(tmp_path / "out.fap")
     assert back.mask[:, model.fap_columns].all()
     assert fap_psnr(truth, back) > 25
+    # each FAP weighed by the step it was coded with (quant 1 here, the file's own), as the model's
+    # interpretation of a coded stream should be
+    from faceanim.mpeg4.fapcoder import fba_quant, read_fba
+    from faceanim.speaker import read_speaker
+
+    assert fba_quant(tmp_path / "s.fba") == 1.0
+    expected = read_speaker(tmp_path / "s.npz").regularise(read_fba(tmp_path / "s.fba"), quant=1.0)
+    np.testing.assert_allclose(back.values, np.round(expected.values), atol=1)

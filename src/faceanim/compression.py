@@ -127,7 +127,7 @@ def fap_decompress(source, output, *, speaker=None) -> FapStream:
 
     Returns the stream written (values as the ``.fap`` holds them before rounding to whole units).
     """
-    from .mpeg4.fapcoder import read_fba
+    from .mpeg4.fapcoder import fba_quant, read_fba
     from .mpeg4.fapfile import write_fap
 
     output = Path(output)
@@ -138,8 +138,8 @@ def fap_decompress(source, output, *, speaker=None) -> FapStream:
 
         model = read_speaker(speaker)
     stream = read_fba(source)
-    if model is not None:
-        stream = model.regularise(stream)
+    if model is not None:  # each FAP weighed by its quantiser step: the coding error is what is filtered
+        stream = model.regularise(stream, quant=fba_quant(source))
     if round(stream.fps) < 1:
         raise InputError(f"{source}: {stream.fps:g} fps cannot be written as a .fap (whole frame rates from 1)")
     write_fap(output, stream)

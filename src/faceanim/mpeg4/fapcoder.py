@@ -58,7 +58,7 @@ from ..errors import FileFormatError, InputError
 from .fapstream import FapStream, curve_columns
 from .tables import FAP_COUNT, fap_table
 
-__all__ = ["encode_faps", "decode_faps", "read_fba", "write_fba", "fap_psnr", "FORMAT_VERSION"]
+__all__ = ["encode_faps", "decode_faps", "read_fba", "write_fba", "fba_quant", "fap_psnr", "FORMAT_VERSION"]
 
 MAGIC = b"faFB"
 FORMAT_VERSION = 1
@@ -379,6 +379,16 @@ def read_fba(path) -> FapStream:
     except OSError as exc:
         raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
     return decode_faps(data, source=str(path))
+
+
+def fba_quant(path) -> float:
+    """The quantiser scale a ``.fba`` file was coded with (read :func:`read_fba` first: this reads only
+    the header, and trusts it)."""
+    with open(path, "rb") as handle:
+        head = handle.read(_HEAD.size)
+    if len(head) != _HEAD.size:
+        raise FileFormatError(path, "is cut short in its header")
+    return float(_HEAD.unpack(head)[4])
 
 
 def fap_psnr(original: FapStream, decoded: FapStream, *, faps: Sequence[int] | None = None) -> float:
