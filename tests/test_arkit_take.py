@@ -271,3 +271,20 @@ def test_blendshapes_of_a_faceless_image_writes_nothing(tmp_path, capsys):
     assert main(["blendshapes", str(tmp_path / "grey.png"), "-o", str(tmp_path / "take.csv")]) == 2
     assert "no face was found" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["grey.png"]
+
+
+def test_blendshapes_of_a_track_saved_without_scores_is_refused(tmp_path, capsys):
+    """A track saved before the Face Landmarker was faceanim's tracker has no scores: one line, nothing written."""
+    pytest.importorskip("mediapipe", reason="capture needs faceanim[capture]")
+    from dataclasses import replace
+
+    from faceanim.capture.track import track_video
+
+    track = track_video(shared("videos", "d0.mp4"), progress=False)
+    replace(track, blendshapes=None, blendshape_names=()).save(tmp_path / "old.npz")
+    assert main(["blendshapes", str(tmp_path / "old.npz"), "-o", str(tmp_path / "take.csv")]) == 2
+    assert "old.npz: holds no blendshape scores" in capsys.readouterr().err
+    assert not (tmp_path / "take.csv").exists()
+    track.save(tmp_path / "new.npz")  # a track with scores is a source like its video
+    assert main(["blendshapes", str(tmp_path / "new.npz"), "-o", str(tmp_path / "take.csv")]) == 0
+    assert read_livelink_csv(tmp_path / "take.csv").weights.shape == (78, 52)

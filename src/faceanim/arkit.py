@@ -101,6 +101,9 @@ def blendshapes(video, output, *, neutral=None, smoothing: bool = True, progress
     if capture is None:
         capture = captured_source(video, neutral=neutral, smoothing=smoothing, progress=progress,
                                   folder=output.parent)
+    if capture.blendshapes is None:  # named as the user gave it (a track's own source is its video)
+        raise InputError(f"{video}: holds no blendshape scores (a track saved by an older faceanim); track the "
+                         "video again")
     take = take_of_capture(capture, neutral=window)
     write_livelink_csv(output, take)
     skipped = len(capture.valid) - len(take)
