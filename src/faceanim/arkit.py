@@ -26,7 +26,7 @@ def _neutral_window(neutral) -> tuple[int, int] | None:
 
     if neutral is None:
         return None
-    choice = parse_neutral(str(neutral), 2**62)  # the video's length is checked once it is tracked
+    choice = parse_neutral(str(neutral))  # the video's length is checked once it is tracked
     if not isinstance(choice, tuple):
         raise InputError(f"--neutral {neutral}: blendshapes takes the neutral as FRAME or START:END (frames)")
     return choice
