@@ -130,9 +130,12 @@ def test_automatic_placement_on_the_ict_face():
     for point, landmark in (("9.3", 30), ("8.3", 54), ("8.4", 48), ("3.7", 45), ("3.12", 36)):
         assert np.linalg.norm(mesh.vertices[target.points[point]] - truth[landmark]) < 0.8, point
     assert mesh.vertices[target.points["8.3"], 0] > 0 > mesh.vertices[target.points["8.4"], 0]  # face's own left
-    # the mouth is closed: the inner-lip middles fall on one line, yet each lands on its own lip, on
-    # ICT's own inner-lip landmark vertices (62 upper, 66 lower)
-    assert (target.points["2.2"], target.points["2.3"]) == (model.landmarks[62], model.landmarks[66])
+    # the mouth is closed: the inner-lip middles fall on one line, yet each lands on its own lip, at ICT's
+    # own inner-lip landmark vertices (62 upper, 66 lower): on them with FaceMesh's points; the Face
+    # Landmarker's upper one lands on the next vertex up the upper lip's inner face, 0.29 cm away
+    for point, landmark in (("2.2", 62), ("2.3", 66)):
+        assert np.linalg.norm(mesh.vertices[target.points[point]] - truth[landmark]) < 0.3, point
+    assert mesh.vertices[target.points["2.2"], 1] > mesh.vertices[target.points["2.3"], 1]  # upper above lower
     normals = mesh.vertex_normals
     assert normals[target.points["2.6"], 1] < 0 < normals[target.points["2.8"], 1]  # upper faces down, lower up
     # the pupils sit on the eye's own parts (ICT's eye films and eyeballs, vertices 21451 on), not on the lids
