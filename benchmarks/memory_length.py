@@ -1,4 +1,4 @@
-"""Peak memory of `encode`, `animate` and `decode` against the video's length: 10 s, 60 s and 5 minutes.
+"""Peak memory of `encode`, `animate`, `aus` and `decode` against the video's length: 10 s to 10 minutes.
 
     python3 benchmarks/memory_length.py [--lengths 10,60,300] [--baseline OTHER_CHECKOUT/src [--baseline-lengths 10,60]]
 
@@ -9,7 +9,13 @@ fresh process under ``/usr/bin/time``, which reports its peak resident memory:
 
 - ``faceanim encode VIDEO -o x.fap``
 - ``faceanim animate VIDEO --target ICT -o x.glb``
+- ``faceanim aus VIDEO -o x.csv``
 - ``faceanim decode x.fap --target ICT -o y.glb``
+- ``batch task``: what one Ray task of ``faceanim batch --do encode,aus,animate --target ICT`` runs for
+  a video (:func:`faceanim.dataset.process_video`), in a process of its own (a Ray worker's own
+  footprint, about 0.1 GB, comes on top)
+
+``--jobs`` picks some of them (the table then goes to ``memory_length_JOBS.md``).
 
 The goal (issue 20): flat in length, and at most 1.5 GB for ``animate`` at any length.
 ``--baseline`` runs the same jobs with another checkout's ``src`` first on ``PYTHONPATH`` (the code
@@ -33,6 +39,7 @@ DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 SOURCE = DATA / "videos" / "d6.mp4"
 TARGET = DATA / "ict_facekit" / "obj" / "generic_neutral_mesh.obj"
 GOAL_GB = 1.5
+JOBS = ("encode", "animate", "aus", "decode", "batch task")
 
 
 def looped_video(seconds: int, folder: Path) -> Path:
@@ -62,14 +69,30 @@ def looped_video(seconds: int, folder: Path) -> Path:
     return path
 
 
+BATCH_TASK = """
+import sys
+from pathlib import Path
+from faceanim.dataset import process_video
+from faceanim.inputs import load_target
+from faceanim.manifest import Video
+video, folder, target = sys.argv[1:4]
+result = process_video(Video(Path(video), Path(video).stem), ("encode", "aus", "animate"), Path(folder), force=True,
+                       target=load_target(target))
+if result.status != "done":
+    raise SystemExit(result.error)
+"""
+
+
 def peak(command: list[str], src: str | None) -> tuple[float, float]:
-    """(peak resident memory in GB, wall seconds) of ``command`` run under /usr/bin/time."""
+    """(peak resident memory in GB, wall seconds) of ``faceanim COMMAND`` (or, for a command that starts
+    with ``-c``, that Python program) run under /usr/bin/time."""
     env = dict(os.environ)
     if src is not None:
         env["PYTHONPATH"] = src + os.pathsep + env.get("PYTHONPATH", "")
+    program = command if command[0] == "-c" else ["-m", "faceanim.cli", *command]
     with tempfile.NamedTemporaryFile("r", suffix=".time") as report:
-        done = subprocess.run(["/usr/bin/time", "-f", "%M %e", "-o", report.name, sys.executable, "-m", "faceanim.cli",
-                               *command], env=env, capture_output=True, text=True)
+        done = subprocess.run(["/usr/bin/time", "-f", "%M %e", "-o", report.name, sys.executable, *program],
+                              env=env, capture_output=True, text=True)
         if done.returncode != 0:
             raise SystemExit(f"{' '.join(command)} failed:\n{done.stderr}")
         kilobytes, seconds = report.read().split()[-2:]
@@ -78,9 +101,10 @@ def peak(command: list[str], src: str | None) -> tuple[float, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--lengths", default="10,60,300", help="video lengths in seconds (default 10,60,300)")
+    parser.add_argument("--lengths", default="10,60,300,600", help="video lengths in seconds (default 10,60,300,600)")
     parser.add_argument("--baseline", metavar="SRC", help="another checkout's src folder, run side by side")
     parser.add_argument("--baseline-lengths", help="the lengths the baseline runs at (default: --lengths)")
+    parser.add_argument("--jobs", default=",".join(JOBS), help=f"which jobs (default all: {','.join(JOBS)})")
     parser.add_argument("--work", default=str(Path(tempfile.gettempdir()) / "faceanim-memory"),
                         help="where the looped videos and outputs go")
     args = parser.parse_args()
@@ -89,6 +113,9 @@ def main() -> None:
     work = Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
     lengths = [int(x) for x in args.lengths.split(",")]
+    chosen = [j.strip() for j in args.jobs.split(",")]
+    if unknown := [j for j in chosen if j not in JOBS]:
+        raise SystemExit(f"--jobs: unknown {unknown[0]!r}; the jobs are {', '.join(JOBS)}")
     baseline_lengths = [int(x) for x in (args.baseline_lengths or args.lengths).split(",")]
     versions = [("this checkout", None)] + ([("baseline", args.baseline)] if args.baseline else [])
     rows = []
@@ -101,13 +128,20 @@ def main() -> None:
             fap, glb, decoded = (work / f"{tag}.fap", work / f"{tag}.glb", work / f"{tag}_decoded.glb")
             jobs = (("encode", ["encode", str(video), "-o", str(fap)]),
                     ("animate", ["animate", str(video), "--target", str(TARGET), "-o", str(glb)]),
-                    ("decode", ["decode", str(fap), "--target", str(TARGET), "-o", str(decoded)]))
+                    ("aus", ["aus", str(video), "-o", str(work / f"{tag}_aus.csv")]),
+                    ("decode", ["decode", str(fap), "--target", str(TARGET), "-o", str(decoded)]),
+                    ("batch task", ["-c", BATCH_TASK, str(video), str(work / f"{tag}_batch"), str(TARGET)]))
             for job, command in jobs:
+                if job not in chosen:
+                    continue
+                if job == "batch task":
+                    (work / f"{tag}_batch").mkdir(exist_ok=True)
                 gigabytes, wall = peak(command, src)
                 rows.append((name, job, seconds, gigabytes, wall))
                 print(f"{name:<14} {job:<8} {seconds:>5} s  {gigabytes:6.2f} GB  {wall:7.1f} s", flush=True)
     lines = ["# Peak memory against the video's length", "",
              f"`python3 benchmarks/memory_length.py --lengths {args.lengths}"
+             + ("" if chosen == list(JOBS) else f" --jobs '{args.jobs}'")
              + (f" --baseline SRC --baseline-lengths {','.join(map(str, baseline_lengths))}`" if args.baseline
                 else "`"), "",
              f"d6 looped forwards and backwards (30 fps, 480x480) onto the ICT-FaceKit head (26,719 vertices); "
@@ -116,7 +150,7 @@ def main() -> None:
              "| code | job | " + " | ".join(f"{s} s ({s * 30} frames)" for s in lengths) + " | growth per minute |",
              "|---|---|" + "---|" * len(lengths) + "---|"]
     for name, _ in versions:
-        for job in ("encode", "animate", "decode"):
+        for job in chosen:
             cells = {s: (g, w) for n, j, s, g, w in rows if n == name and j == job}
             ran = sorted(cells)
             growth = ((cells[ran[-1]][0] - cells[ran[0]][0]) / ((ran[-1] - ran[0]) / 60)
@@ -124,7 +158,8 @@ def main() -> None:
             lines.append(f"| {name} | {job} | " + " | ".join(f"{cells[s][0]:.2f} GB ({cells[s][1]:.0f} s)" if s in cells
                                                              else "not run" for s in lengths)
                          + f" | {growth * 1024:+.0f} MB |")
-    publish("memory_length.md", lines)
+    everything = chosen == list(JOBS)
+    publish("memory_length.md" if everything else f"memory_length_{'_'.join(chosen).replace(' ', '_')}.md", lines)
 
 
 if __name__ == "__main__":
