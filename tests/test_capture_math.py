@@ -204,7 +204,8 @@ def test_short_gaps_are_filled_and_flagged_long_ones_reported(tmp_path):
     from faceanim.capture.track import Track, fill_gaps
 
     T = 40
-    landmarks = np.repeat(np.linspace(0, 1, T)[:, None, None], 3, axis=2) * np.ones((T, 478, 3))
+    face = np.random.default_rng(5).random((478, 3)) * 0.1  # a face's spread (a flat one is refused at load)
+    landmarks = np.repeat(np.linspace(0, 1, T)[:, None, None], 3, axis=2) + face
     valid = np.ones(T, bool)
     valid[[5, 6]] = False          # 2 frames: short
     valid[20:32] = False           # 12 frames at 25 fps: longer than 0.2 s
@@ -213,7 +214,7 @@ def test_short_gaps_are_filled_and_flagged_long_ones_reported(tmp_path):
     assert track.gaps() == [(5, 6), (20, 31)]
     filled = fill_gaps(track, max_gap=0.2)
     assert filled.filled.tolist() == [t in (5, 6) for t in range(T)]
-    np.testing.assert_allclose(filled.landmarks[5:7, 0, 0], np.linspace(0, 1, T)[5:7])  # linear ramp restored
+    np.testing.assert_allclose(filled.landmarks[5:7, 0, 0], np.linspace(0, 1, T)[5:7] + face[0, 0])  # ramp restored
     assert filled.gaps() == [(20, 31)] and not filled.valid[5]
     filled.save(tmp_path / "t.npz")
     back = Track.load(tmp_path / "t.npz")
