@@ -139,7 +139,8 @@ def main(argv=None) -> int:
         + ("Tuning seeds: how pairs are made was chosen on these." if args.tuning else
            "Reporting seeds: not used while choosing how pairs are made (tuning seeds 3, 7, 11)."),
         "",
-        "| seed | sigma | " + " | ".join(f"{v}: median / worst shape" for v in variants) + " | seconds per rig (shared machine) |",
+        "| seed | sigma | " + " | ".join(f"{v}: median / worst shape" for v in variants)
+        + " | seconds per rig (shared machine) |",
         "|---|---|" + "---|" * len(variants) + "---|",
     ]
     for seed in seeds:
