@@ -157,7 +157,7 @@ def main() -> None:
                       if len(ran) > 1 else float("nan"))
             lines.append(f"| {name} | {job} | " + " | ".join(f"{cells[s][0]:.2f} GB ({cells[s][1]:.0f} s)" if s in cells
                                                              else "not run" for s in lengths)
-                         + f" | {growth * 1024:+.0f} MB |")
+                         + (f" | {growth * 1024:+.0f} MB |" if len(ran) > 1 else " | - |"))
     everything = chosen == list(JOBS)
     publish("memory_length.md" if everything else f"memory_length_{'_'.join(chosen).replace(' ', '_')}.md", lines)
 
