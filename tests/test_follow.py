@@ -73,3 +73,28 @@ def test_head_motion_turns_the_target_about_its_own_axes():
     np.testing.assert_allclose(positions[0], target.mesh.vertices, atol=1e-12)
     # the motion's frame is the target's turned by R, so the target turns by R^T pitch R
     np.testing.assert_allclose(positions[1], target.mesh.vertices @ (R.T @ pitch @ R).T, atol=1e-9)
+
+
+def test_a_streamed_motion_with_gaps_moves_the_target_as_the_held_one_does():
+    """The carried controls are read by runs of frames: a run that starts inside a gap must show the
+    last face before it, however far back (here across several of the deformer's 32-frame chunks)."""
+    target, motion, ids, _ = setting(frames=120, seed=1)
+    d = motion.displacements.copy()
+    valid = np.ones(120, bool)
+    valid[:3] = valid[30:100] = valid[117:] = False
+    d[~valid] = np.nan
+    held = Motion(motion.names, motion.neutral, d, motion.pose, motion.fps, motion.fapu, valid=valid)
+    read = []
+
+    def frames(a, b):
+        read.append((a, b))
+        return d[a:b]
+
+    streamed = Motion.streamed(motion.names, motion.neutral, frames, motion.pose, motion.fps, motion.fapu, valid=valid)
+    expected = animate_motion(held, target).positions
+    animation = animate_motion(streamed, target)
+    for a, b in ((0, 5), (40, 41), (64, 96), (95, 110), (117, 120), (0, 120)):
+        # (runs of 16 frames or more go through the float32 operator: equal to 1e-7 of the unit)
+        np.testing.assert_allclose(animation.chunk(a, b), expected[a:b], atol=1e-7)
+    np.testing.assert_allclose(expected[64], expected[29])  # deep in the gap: frame 29's face
+    assert max(b - a for a, b in read) <= 1024  # read by runs, never the whole motion at once

@@ -219,6 +219,32 @@ def test_fitter_reads_back_single_action_units_and_their_rise(face):
     assert table.shape == (2, len(numbers)) and 45 in numbers and 46 not in numbers
 
 
+def test_fitter_reads_a_streamed_motion_chunk_by_chunk_as_it_reads_the_whole(face):
+    """read_motion reads a long motion a chunk at a time (aus held every frame's points twice): the
+    result is the fit of each frame, NaN where there is no face."""
+    from faceanim.motion import CHUNK, Motion
+
+    names = list(face.target.points)
+    fitter = AuFitter(face, names)
+    ids = face.target.ids(names)
+    T = CHUNK + 3  # two chunks
+    weights = np.linspace(0, 1, T)
+    d = np.stack([expression_field(face, {"12": 1.0})[ids]] * T) * weights[:, None, None]
+    valid = np.ones(T, bool)
+    valid[[1, CHUNK + 1]] = False
+    neutral = face.target.mesh.vertices[ids]
+    pose = np.tile(np.eye(4), (T, 1, 1))
+    held = Motion(names, neutral, np.where(valid[:, None, None], d, np.nan), pose, 25.0, face.target.fapu,
+                  valid=valid)
+    streamed = Motion.streamed(names, neutral, lambda a, b: held.displacements[a:b], pose, 25.0, face.target.fapu,
+                               valid=valid)
+    got = fitter.read_motion(streamed)
+    np.testing.assert_array_equal(got, fitter.read_motion(held))
+    assert np.isnan(got[[1, CHUNK + 1]]).all() and np.isfinite(got[valid]).all()
+    every = [0, 2, CHUNK, CHUNK + 2]
+    np.testing.assert_allclose(got[every], fitter(d[every]), atol=1e-12)
+
+
 def test_envelope_rises_holds_and_falls():
     w = envelope(21)
     assert w[0] == 0 and w[-1] == 0 and w.max() == 1 and np.all(w[7:14] == 1)
