@@ -44,7 +44,7 @@ def take_of_capture(capture, *, neutral: tuple[int, int] | None = None):
         The capture has no blendshape scores (a track saved before faceanim tracked with the Face
         Landmarker), or no frame of the ``neutral`` window has a face.
     """
-    from .motion import EYEBALL_RADIUS_ES0, head_angles
+    from .motion import gaze_angles, head_angles, rotation_part
     from .rig.livelink import Take, arkit_weights
 
     if capture.blendshapes is None:
@@ -66,13 +66,11 @@ def take_of_capture(capture, *, neutral: tuple[int, int] | None = None):
         weights = np.clip(weights - weights[at].mean(axis=0), 0.0, 1.0)
     motion = capture.motion
     pose = np.zeros((len(usable), 9))
-    turned = motion.pose[:, :3, :3] / np.cbrt(np.linalg.det(motion.pose[:, :3, :3]))[:, None, None]
-    pitch_yaw_roll = head_angles(turned)
+    pitch_yaw_roll = head_angles(rotation_part(motion.pose))
     pose[:, :3] = pitch_yaw_roll[:, [1, 0, 2]]
-    pupils = motion.points_over_time(["3.5", "3.6"]) / (EYEBALL_RADIUS_ES0 * motion.fapu.es0)
-    for eye in range(2):  # left (3.5), right (3.6): yaw towards the face's left, pitch down
-        pose[:, 3 + 3 * eye] = np.arcsin(np.clip(pupils[:, eye, 0], -1, 1))
-        pose[:, 4 + 3 * eye] = -np.arcsin(np.clip(pupils[:, eye, 1], -1, 1))
+    pupils = motion.points_over_time(["3.5", "3.6"])
+    for eye in range(2):  # left (3.5), right (3.6): yaw towards the face's left, pitch down, as FAPs 23-26
+        pose[:, 3 + 3 * eye:5 + 3 * eye] = gaze_angles(pupils[:, eye], motion.fapu)
     keep = usable & np.isfinite(pose).all(axis=1)
     times = np.asarray(capture.times)[keep]
     return Take(times - min(float(times[0]), 0.0), weights[keep], pose[keep], capture.fps)

@@ -234,7 +234,7 @@ def aus(video, output, *, neutral=None, smoothing=True, progress=None, capture=N
     from .export.curves import openface_pose, write_au_csv
     from .generic import landmark_target
     from .inputs import captured_source
-    from .motion import _rotation_part
+    from .motion import rotation_part
     from .outputs import check_outputs
     from .progress import as_progress
     from .synth import MuscleFace
@@ -252,6 +252,6 @@ def aus(video, output, *, neutral=None, smoothing=True, progress=None, capture=N
         values = np.clip(one_euro(values[:, :, None], recorded.times, OneEuro(min_cutoff=2.0, beta=0.5))[:, :, 0],
                          0, 2)
     numbers, table = bilateral(fitter.codes, values)
-    pose = openface_pose(_rotation_part(motion.pose))
+    pose = openface_pose(rotation_part(motion.pose))
     write_au_csv(output, numbers, table, recorded.times, recorded.valid & motion.valid, pose=pose)
     return numbers, table

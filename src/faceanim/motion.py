@@ -21,7 +21,8 @@ from .mpeg4.fapu import HUMAN_ES0
 from .mpeg4.jaw import JAW_CARRIED, jaw_hinge, jaw_swing
 from .validation import as_array
 
-__all__ = ["Motion", "motion_to_faps", "clip_to_range", "head_angles", "relative_head_rotations", "EYEBALL_RADIUS_ES0"]
+__all__ = ["Motion", "motion_to_faps", "clip_to_range", "head_angles", "relative_head_rotations", "rotation_part",
+           "gaze_angles", "EYEBALL_RADIUS_ES0"]
 
 # An adult eyeball's radius (1.2 cm) over a typical eye separation (HUMAN_ES0, 6.3 cm): the eyeball in
 # the face's own yardstick, so iris shifts turn into the same gaze angles whatever the face's unit.
@@ -202,10 +203,24 @@ def head_angles(rotations) -> np.ndarray:
     return np.stack([pitch, yaw, roll], axis=1)
 
 
-def _rotation_part(pose: np.ndarray) -> np.ndarray:
+def rotation_part(pose: np.ndarray) -> np.ndarray:
     """Rotations of similarity transforms ``(T, 4, 4)``, scale divided out."""
     A = pose[:, :3, :3]
     return A / np.cbrt(np.linalg.det(A))[:, None, None]
+
+
+def gaze_angles(pupil_displacements, fapu: Fapu) -> np.ndarray:
+    """``(T, 2)`` an eye's yaw (towards the face's left) and pitch (down), radians, from its pupil's
+    displacement ``(T, 3)`` in the head frame: the shift over an eyeball of radius
+    :data:`EYEBALL_RADIUS_ES0` times the face's ES0, so the angle does not depend on the unit.
+
+    >>> from faceanim.mpeg4 import Fapu
+    >>> fapu = Fapu(irisd0=1.0, es0=6.3, ens0=4.0, mns0=3.0, mw0=5.0)
+    >>> [round(float(a), 6) + 0.0 for a in gaze_angles([[0.0, -1.2 / 2, 0.0]], fapu)[0]]  # pupil 6 mm down
+    [0.0, 0.523599]
+    """
+    shift = np.asarray(pupil_displacements, dtype=np.float64) / (EYEBALL_RADIUS_ES0 * fapu.es0)
+    return np.stack([np.arcsin(np.clip(shift[:, 0], -1, 1)), -np.arcsin(np.clip(shift[:, 1], -1, 1))], axis=1)
 
 
 def relative_head_rotations(motion: Motion) -> np.ndarray:
@@ -214,7 +229,7 @@ def relative_head_rotations(motion: Motion) -> np.ndarray:
     R = np.tile(np.eye(3), (len(motion), 1, 1))
     valid = motion.valid
     if valid.any():
-        turned = _rotation_part(motion.pose[valid])
+        turned = rotation_part(motion.pose[valid])
         R[valid] = np.einsum("ji,tjk->tik", turned[0], turned)
     return R
 
@@ -253,13 +268,12 @@ def motion_to_faps(motion: Motion, *, name: str = "faceanim") -> FapStream:
             d = d - swing(motion.neutral[lookup[points[0]]])  # a player swings these with open_jaw first
         values[:, j] = d @ table.direction[j] / units[j]
         mask[:, j] = True
-    eyes = {"l": ("3.5", "yaw_l_eyeball", "pitch_l_eyeball"), "r": ("3.6", "yaw_r_eyeball", "pitch_r_eyeball")}
-    for pupil, yaw_name, pitch_name in eyes.values():
+    eyes = {"3.5": ("yaw_l_eyeball", "pitch_l_eyeball"), "3.6": ("yaw_r_eyeball", "pitch_r_eyeball")}
+    for pupil, names in eyes.items():
         if pupil in lookup:
-            shift = seen[pupil] / (EYEBALL_RADIUS_ES0 * motion.fapu.es0)
-            for fap, component, sign in ((yaw_name, 0, 1.0), (pitch_name, 1, -1.0)):
+            for fap, angle in zip(names, gaze_angles(seen[pupil], motion.fapu).T, strict=True):
                 j = table.number(fap) - 1
-                values[:, j] = sign * np.arcsin(np.clip(shift[:, component], -1, 1)) / ANGLE_UNIT
+                values[:, j] = angle / ANGLE_UNIT
                 mask[:, j] = True
     valid = motion.valid
     if valid.any():
