@@ -14,22 +14,10 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .inputs import captured_source
+from .inputs import captured_source, neutral_window
 from .outputs import check_outputs
 
 __all__ = ["blendshapes", "take_of_capture"]
-
-
-def _neutral_window(neutral) -> tuple[int, int] | None:
-    """``--neutral`` as a frame window: ``FRAME`` or ``START:END``; an image is refused."""
-    from .capture.neutral import parse_neutral
-
-    if neutral is None:
-        return None
-    choice = parse_neutral(str(neutral))  # the video's length is checked once it is tracked
-    if not isinstance(choice, tuple):
-        raise InputError(f"--neutral {neutral}: blendshapes takes the neutral as FRAME or START:END (frames)")
-    return choice
 
 
 def take_of_capture(capture, *, neutral: tuple[int, int] | None = None):
@@ -95,7 +83,7 @@ def blendshapes(video, output, *, neutral=None, smoothing: bool = True, progress
 
     output = Path(output)
     check_outputs({"-o": (output, ".csv")}, inputs={"VIDEO": video})
-    window = _neutral_window(neutral)
+    window = neutral_window(neutral, "blendshapes")
     if capture is None:
         capture = captured_source(video, neutral=neutral, smoothing=smoothing, progress=progress,
                                   folder=output.parent)

@@ -10,7 +10,7 @@ from pathlib import Path
 from .errors import InputError
 from .geometry import read_mesh
 
-__all__ = ["load_target", "capture_motion", "captured_source", "motion_of_track", "target_unit"]
+__all__ = ["load_target", "capture_motion", "captured_source", "motion_of_track", "neutral_window", "target_unit"]
 
 
 def load_target(mesh_path=None, *, points=None, fdp=None, progress=None):
@@ -95,6 +95,20 @@ def captured_source(source, *, neutral=None, smoothing=True, progress=None, fold
                        folder=folder, **_neutral_choice(neutral, given))
     _report_gaps(source, capture.gaps())
     return capture
+
+
+def neutral_window(neutral, command: str) -> tuple[int, int] | None:
+    """``--neutral`` of a command that takes it only as frames (``FRAME`` or ``START:END``), checked
+    before any work: the window, None when not given; an image is refused, naming ``command``. (The
+    window is checked against the video's length once it is tracked.)"""
+    from .capture.neutral import parse_neutral
+
+    if neutral is None:
+        return None
+    choice = parse_neutral(str(neutral))
+    if not isinstance(choice, tuple):
+        raise InputError(f"--neutral {neutral}: {command} takes the neutral as FRAME or START:END (frames)")
+    return choice
 
 
 def _neutral_choice(neutral, given) -> dict:

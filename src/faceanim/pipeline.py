@@ -12,7 +12,7 @@ from .errors import FileFormatError, InputError
 from .expressions import aus, express  # the expression jobs live in their own module; re-exported here
 from .geometry import read_mesh, write_mesh
 from .geometry.animation import spilled
-from .inputs import capture_motion, captured_source, load_target, motion_of_track, target_unit  # noqa: F401 (re-exported)
+from .inputs import capture_motion, captured_source, load_target, motion_of_track, neutral_window, target_unit  # noqa: F401 (capture_motion, motion_of_track re-exported)
 from .jsonfile import read_json
 from .outputs import SEQUENCE_FOLDER, check_outputs
 from .retarget import REGIONS, ControlPairs, region_mask, transfer_expression
@@ -359,7 +359,6 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     ``capture``, the :class:`~faceanim.capture.stream.Capture` of ``video`` already made, stands in
     for tracking it again. Returns ``(animation, stream)``: the streamed
     :class:`~faceanim.geometry.animation.Animation` (reading its frames deforms them again) and the FAPs."""
-    from .capture.neutral import parse_neutral
     from .capture.overlay import overlay_frames
     from .motion import clip_to_range, motion_to_faps
     from .mpeg4.fapfile import write_fap
@@ -373,8 +372,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     check_outputs({"-o": (output, ".glb"), "--fap": (fap, ".fap"), "--preview": (preview, ".mp4"),
                    "--csv": (csv, ".csv"), "--obj-sequence": (obj_sequence, SEQUENCE_FOLDER)},
                   inputs={"VIDEO": video, "--target": target_mesh, "--points": points, "--fdp": fdp, "--parts": parts})
-    if neutral is not None and not isinstance(parse_neutral(str(neutral)), tuple):
-        raise InputError("animate takes the neutral as FRAME or START:END")  # said before any work is done
+    neutral_window(neutral, "animate")  # said before any work is done
     shown = as_progress(progress)
     target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
     # The landmarks and the motion stay in unnamed temporary files beside the output (freed with the
