@@ -5,12 +5,14 @@ import csv
 import json
 import re
 
+import numpy as np
 import pytest
 from conftest import shared
 
 from faceanim.cli import main
 from faceanim.errors import FileFormatError, InputError
 from faceanim.manifest import collect_videos, read_manifest
+from faceanim.rig.livelink import read_livelink_csv
 
 
 def test_files_folders_globs_and_manifests(tmp_path):
@@ -65,7 +67,7 @@ def test_bad_inputs_are_refused_before_any_work(tmp_path):
 
 
 @pytest.mark.parametrize(("extra", "message"), [
-    (["--do", "encode,blend"], r"--do takes encode, aus, animate, plot \(comma-separated\), got blend"),
+    (["--do", "encode,blend"], r"--do takes encode, aus, blendshapes, animate, plot \(comma-separated\), got blend"),
     (["--do", "aus,plot"], r"--do plot draws each video's FAPs: ask for encode too \(--do encode,plot\)"),
     (["--address", "ray://127.0.0.1:1"], "--address ray://127.0.0.1:1: no Ray cluster answers there"),
     (["--address", "nowhere"], "--address nowhere: give ray://HOST:PORT, HOST:PORT or auto"),
@@ -95,24 +97,31 @@ def test_a_small_batch_on_local_ray_with_a_corrupt_file(tmp_path, capsys):
     manifest = tmp_path / "list.csv"
     manifest.write_text(f"path,name\n{d0},smiles\nbroken.mp4,\nblank.png,\n")
     out = tmp_path / "out"
-    assert main(["batch", str(manifest), "-o", str(out), "--do", "encode,aus,plot", "--workers", "2"]) == 0
+    steps = "encode,aus,blendshapes,plot"
+    assert main(["batch", str(manifest), "-o", str(out), "--do", steps, "--workers", "2"]) == 0
     printed = capsys.readouterr().out
     assert "3 videos: 1 done, 0 skipped (outputs there), 2 failed" in printed
     assert sorted(p.name for p in out.iterdir()) == ["batch_summary.csv", "smiles.fap", "smiles_aus.csv",
-                                                     "smiles_curves.png"]
+                                                     "smiles_curves.png", "smiles_take.csv"]
     assert (out / "smiles_curves.png").read_bytes().startswith(b"\x89PNG")  # the FAPs as faceanim plot draws them
     rows = {r["name"]: r for r in csv.DictReader(open(out / "batch_summary.csv"))}
     smiles = rows["smiles"]
     assert smiles["success"] == "1" and smiles["frames"] == "78" and smiles["tracked"] == "1.0000"
-    assert rows["smiles"]["outputs"] == "smiles.fap smiles_aus.csv smiles_curves.png" and rows["smiles"]["error"] == ""
+    assert smiles["outputs"] == "smiles.fap smiles_aus.csv smiles_take.csv smiles_curves.png" and smiles["error"] == ""
     assert rows["broken"]["success"] == "0" and "broken.mp4" in rows["broken"]["error"]
     assert rows["blank"]["success"] == "0" and "no face was found" in rows["blank"]["error"]
     assert all("\n" not in r["error"] for r in rows.values())
     # the same outputs as the single command, and a re-run skips what is there
     assert main(["encode", str(d0), "-o", str(tmp_path / "single.fap")]) == 0
     assert (tmp_path / "single.fap").read_text().split("\n", 1)[1] == (out / "smiles.fap").read_text().split("\n", 1)[1]
+    # the Live Link take from the shared capture is the one faceanim blendshapes writes
+    assert main(["blendshapes", str(d0), "-o", str(tmp_path / "single_take.csv")]) == 0
+    single, batch = read_livelink_csv(tmp_path / "single_take.csv"), read_livelink_csv(out / "smiles_take.csv")
+    assert len(batch) == 78 and np.array_equal(single.times, batch.times)
+    assert np.array_equal(single.weights, batch.weights) and np.array_equal(single.pose, batch.pose)
+    assert (tmp_path / "single_take.csv").read_text() == (out / "smiles_take.csv").read_text()
     before = (out / "smiles.fap").stat().st_mtime_ns
-    assert main(["batch", str(manifest), "-o", str(out), "--do", "encode,aus,plot", "--workers", "1"]) == 0
+    assert main(["batch", str(manifest), "-o", str(out), "--do", steps, "--workers", "1"]) == 0
     assert "3 videos: 0 done, 1 skipped (outputs there), 2 failed" in capsys.readouterr().out
     assert (out / "smiles.fap").stat().st_mtime_ns == before
 

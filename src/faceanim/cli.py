@@ -239,16 +239,17 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--title", help="the figure's title (default: the file's name)")
 
     p = commands.add_parser("batch", help="process many videos on Ray (locally or on a cluster)",
-                            description="Run encode, aus and/or animate on every video INPUTS name (files, folders, "
-                                        "globs, or a .csv/.jsonl manifest with a path column and per-row name, "
-                                        "neutral, no_filter, target), one Ray task per video. Each video's outputs "
-                                        "(NAME.fap, NAME_aus.csv, NAME.glb) appear complete or not at all; a video "
-                                        "that fails is listed with its reason and the rest go on; outputs already in "
-                                        "OUTDIR are not made again. Writes OUTDIR/batch_summary.csv.")
+                            description="Run encode, aus, blendshapes and/or animate on every video INPUTS name "
+                                        "(files, folders, globs, or a .csv/.jsonl manifest with a path column and "
+                                        "per-row name, neutral, no_filter, target), one Ray task per video. Each "
+                                        "video's outputs (NAME.fap, NAME_aus.csv, NAME_take.csv, NAME.glb) appear "
+                                        "complete or not at all; a video that fails is listed with its reason and the "
+                                        "rest go on; outputs already in OUTDIR are not made again. Writes "
+                                        "OUTDIR/batch_summary.csv.")
     p.add_argument("inputs", nargs="+", metavar="INPUTS")
     p.add_argument("-o", "--output", required=True, metavar="OUTDIR")
     p.add_argument("--do", default="encode", metavar="STEPS",
-                   help="comma-separated: encode, aus, animate, plot (the FAPs drawn; with encode) "
+                   help="comma-separated: encode, aus, blendshapes, animate, plot (the FAPs drawn; with encode) "
                         "(default: encode)")
     p.add_argument("--target", metavar="MESH", help="the face animate moves (default: the avatar), loaded once")
     p.add_argument("--workers", type=int, metavar="N", help="videos at once on this machine (default: its cores)")

@@ -2,11 +2,12 @@
 video, locally (``ray.init(num_cpus=workers)``) or on a cluster (``address``).
 
 Each task tracks its video once and writes the outputs asked for (``encode``: ``NAME.fap``, ``aus``:
-``NAME_aus.csv``, ``animate``: ``NAME.glb``, ``plot``: ``NAME_curves.png``, the FAPs as ``faceanim plot``
-draws them), the same files the single commands write, all together
-or none (:func:`faceanim.atomic.output_group`). A video that cannot be read or shows no face fails
-alone, with its one-line reason, and the others go on. An output already in the folder is not made
-again (``force`` redoes it), so a re-run after a failure or an interrupt does only what is missing.
+``NAME_aus.csv``, ``blendshapes``: ``NAME_take.csv``, the Live Link take, ``animate``: ``NAME.glb``,
+``plot``: ``NAME_curves.png``, the FAPs as ``faceanim plot`` draws them), the same files the single
+commands write, all together or none (:func:`faceanim.atomic.output_group`). A video that cannot be
+read or shows no face fails alone, with its one-line reason, and the others go on. An output already
+in the folder is not made again (``force`` redoes it), so a re-run after a failure or an interrupt
+does only what is missing.
 The summary (``batch_summary.csv`` in the folder, and a table) gives per video: frames, the share with
 a face tracked, seconds, outputs, error.
 """
@@ -86,6 +87,7 @@ def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool =
     there (all of them with ``force``), together or none. Never raises for the video's own faults
     (unreadable, no face, a bad option): they come back as a failed :class:`VideoResult`."""
     from . import pipeline
+    from .arkit import blendshapes
     from .atomic import output_group
     from .expressions import aus
     from .inputs import captured_source
@@ -101,7 +103,7 @@ def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool =
         if not video.path.is_file():
             raise InputError(f"{video.path}: no such file")
         capture = None
-        if {"encode", "aus", "animate"} & todo.keys():  # tracked once, streamed through disk, for every step
+        if todo.keys() - {"plot"}:  # tracked once, streamed through disk, for every step
             capture = captured_source(video.path, neutral=video.neutral, smoothing=video.smoothing,
                                       folder=Path(folder))
             frames, tracked = len(capture), float(capture.valid.mean())
@@ -113,6 +115,9 @@ def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool =
                 _plot_faps(stream if stream is not None else read_fap(wanted["encode"]), todo["plot"], video)
             if "aus" in todo:
                 aus(video.path, todo["aus"], smoothing=video.smoothing, capture=capture)
+            if "blendshapes" in todo:
+                blendshapes(video.path, todo["blendshapes"], neutral=video.neutral, smoothing=video.smoothing,
+                            capture=capture)
             if "animate" in todo:
                 own = None if video.target is None else pipeline.load_target(video.target)
                 pipeline.animate(video.path, todo["animate"], target=own or target, capture=capture)
@@ -191,8 +196,8 @@ def _write_summary(folder: Path, result: BatchResult) -> None:
 
 def run_batch(inputs, output, *, do=("encode",), target_mesh=None, workers: int | None = None,
               address: str | None = None, force: bool = False, progress=None) -> BatchResult:
-    """``faceanim batch``: ``do`` (``encode``, ``aus``, ``animate``, or a comma-separated string) for
-    every video named by ``inputs`` (files, folders, globs, manifests: see
+    """``faceanim batch``: ``do`` (``encode``, ``aus``, ``blendshapes``, ``animate``, ``plot``, or a
+    comma-separated string) for every video named by ``inputs`` (files, folders, globs, manifests: see
     :func:`~faceanim.manifest.collect_videos`), one Ray task per video, outputs into the folder
     ``output`` (made if missing). ``target_mesh``: the face ``animate`` moves (default: the avatar),
     loaded once; ``workers``: tasks at once on this machine (default: its cores); ``address``: a Ray

@@ -23,8 +23,10 @@ __all__ = ["Video", "collect_videos", "read_manifest", "STEPS", "VIDEO_SUFFIXES"
 VIDEO_SUFFIXES = (".mp4", ".mov", ".avi", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg")
 MANIFEST_SUFFIXES = (".csv", ".jsonl")
 MANIFEST_COLUMNS = ("path", "name", "neutral", "no_filter", "target")
-# step -> the output it writes, named as the README's single commands name theirs (d18.fap, d18_aus.csv, d18.glb)
-STEPS = {"encode": "{name}.fap", "aus": "{name}_aus.csv", "animate": "{name}.glb", "plot": "{name}_curves.png"}
+# step -> the output it writes, named as the README's single commands name theirs (d18.fap, d18_aus.csv,
+# d18_take.csv, d18.glb)
+STEPS = {"encode": "{name}.fap", "aus": "{name}_aus.csv", "blendshapes": "{name}_take.csv", "animate": "{name}.glb",
+         "plot": "{name}_curves.png"}
 _TRUE, _FALSE = ("1", "true", "yes", "on"), ("", "0", "false", "no", "off")
 
 
