@@ -1,0 +1,220 @@
+"""The clone's camera and the head's rigid motion, kept apart as the ICP clone keeps them.
+
+A video is seen through one 3x4 projection matrix ``P`` (fitted once per video) that takes a point
+``X`` of the camera space to normalised screen coordinates, ``[u w, v w, w] = P [X, 1]``, with ``u``
+across the image from the left and ``v`` down from the top, both in [0, 1] over the frame (the
+tracker's normalised landmark coordinates). The head moves by a separate rotation and translation per
+frame, ``X = R p + t`` for a point ``p`` of the head frame (cm, MPEG-4 axes), so that an optimiser
+moving the head has six uncoupled parameters (a rotation vector and a translation, :func:`to_rigid`)
+and never touches the camera.
+
+:func:`fit_video_camera` fits ``P`` to a capture: the head-frame points of each frame, moved by that
+frame's rigid motion (the capture's pose without its scale), against the tracked image landmarks, by
+the normalised direct linear transform refined on the reprojection error.
+
+>>> import numpy as np
+>>> P = np.array([[2.0, 0, 0.5, 0], [0, -2, 0.5, 0], [0, 0, 1, 0]])
+>>> rng = np.random.default_rng(0)
+>>> X = rng.normal(size=(50, 3)) + [0, 0, 10]
+>>> np.allclose(fit_camera(X, project(P, X)), P / np.linalg.norm(P))
+True
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from ..errors import FileFormatError, InputError
+from ..validation import as_array
+
+__all__ = ["fit_camera", "project", "to_rigid", "from_rigid", "rigid_of_pose", "fit_video_camera", "CameraFit",
+           "read_camera", "write_camera"]
+
+
+def project(camera, points) -> np.ndarray:
+    """``(..., 2)`` normalised screen coordinates of camera-space ``points (..., 3)`` through ``camera (3, 4)``."""
+    P = as_array(camera, "camera", shape=(3, 4))
+    X = np.asarray(points, dtype=np.float64)
+    h = X @ P[:, :3].T + P[:, 3]
+    return h[..., :2] / h[..., 2:3]
+
+
+def _normaliser(points: np.ndarray) -> np.ndarray:
+    """The similarity (as a matrix) that centres ``points (M, D)`` and scales their mean distance to sqrt(D)."""
+    centre = points.mean(axis=0)
+    spread = np.sqrt(((points - centre) ** 2).sum(axis=1)).mean()
+    scale = np.sqrt(points.shape[1]) / max(spread, 1e-12)
+    T = np.eye(points.shape[1] + 1)
+    T[:-1, :-1] *= scale
+    T[:-1, -1] = -scale * centre
+    return T
+
+
+def fit_camera(points, image, *, refine: bool = True) -> np.ndarray:
+    """The 3x4 projection taking camera-space ``points (M, 3)`` to ``image (M, 2)`` normalised screen
+    coordinates: the normalised DLT (Hartley), then, with ``refine``, Levenberg-Marquardt on the
+    reprojection error. Scaled to unit Frobenius norm with ``P[2, :3]`` pointing along +w in front.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 6 points, or points that do not determine a camera (all on one plane or line).
+    """
+    X = as_array(points, "points", shape=("M", 3))
+    x = as_array(image, "image", shape=(len(X), 2))
+    if len(X) < 6:
+        raise ValueError(f"a camera needs at least 6 points, got {len(X)}")
+    TX, Tx = _normaliser(X), _normaliser(x)
+    Xn = np.c_[X, np.ones(len(X))] @ TX.T
+    xn = np.c_[x, np.ones(len(x))] @ Tx.T
+    A = np.zeros((2 * len(X), 12))
+    A[0::2, 0:4] = Xn
+    A[0::2, 8:12] = -xn[:, 0:1] * Xn
+    A[1::2, 4:8] = Xn
+    A[1::2, 8:12] = -xn[:, 1:2] * Xn
+    _, S, Vt = np.linalg.svd(A, full_matrices=False)
+    if S[-2] <= 1e-9 * S[0]:
+        raise ValueError("the points do not determine a camera (they lie on a plane or a line)")
+    P = np.linalg.inv(Tx) @ Vt[-1].reshape(3, 4) @ TX
+    if refine:
+        def residual(p):
+            return (project(p.reshape(3, 4), X) - x).reshape(-1)
+
+        P = least_squares(residual, P.reshape(-1) / np.linalg.norm(P), method="lm", x_scale="jac").x.reshape(3, 4)
+    P = P / np.linalg.norm(P)
+    if np.median(np.c_[X, np.ones(len(X))] @ P[2]) < 0:  # the points lie in front: positive w
+        P = -P
+    return P
+
+
+def to_rigid(rotation, translation) -> np.ndarray:
+    """``(..., 6)``: rotation vectors (radians) then translations (cm) of ``rotation (..., 3, 3)`` and
+    ``translation (..., 3)``; the optimiser's six uncoupled parameters."""
+    R = np.asarray(rotation, dtype=np.float64)
+    vectors = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(*R.shape[:-2], 3)
+    return np.concatenate([vectors, np.asarray(translation, dtype=np.float64)], axis=-1)
+
+
+def from_rigid(rigid) -> tuple[np.ndarray, np.ndarray]:
+    """``(rotation (..., 3, 3), translation (..., 3))`` of ``rigid (..., 6)`` (:func:`to_rigid`)."""
+    r = np.asarray(rigid, dtype=np.float64)
+    if r.shape[-1:] != (6,):
+        raise ValueError(f"rigid must have shape (..., 6), got {r.shape}")
+    R = Rotation.from_rotvec(r.reshape(-1, 6)[:, :3]).as_matrix().reshape(*r.shape[:-1], 3, 3)
+    return R, r[..., 3:].copy()
+
+
+def rigid_of_pose(pose) -> np.ndarray:
+    """``(T, 6)`` rigid motion of capture poses ``(T, 4, 4)`` (head frame to camera space): the rotation
+    of each pose's linear part (its polar factor) and its translation divided by the pose's scale.
+    The tracker's camera sits at the origin of camera space, so a scaled head and the unscaled one
+    moved that much nearer project to the same image."""
+    T = as_array(pose, "pose", shape=("T", 4, 4))
+    U, S, Vt = np.linalg.svd(T[:, :3, :3])
+    R = U @ Vt
+    scale = S.mean(axis=1)
+    return to_rigid(R, T[:, :3, 3] / scale[:, None])
+
+
+def moved(points, rigid) -> np.ndarray:
+    """Head-frame ``points (..., N, 3)`` moved by ``rigid (..., 6)`` into camera space."""
+    R, t = from_rigid(rigid)
+    return np.einsum("...ij,...nj->...ni", R, np.asarray(points, dtype=np.float64)) + t[..., None, :]
+
+
+@dataclass(frozen=True)
+class CameraFit:
+    """A video's camera (3, 4), the rigid motion of each frame (T, 6), NaN where the frame had no face,
+    and the reprojection error of the landmarks used, in pixels: median and worst over frames of each
+    frame's median, and the worst single point."""
+
+    camera: np.ndarray
+    rigid: np.ndarray
+    median_px: float
+    worst_frame_px: float
+    worst_point_px: float
+
+
+def fit_video_camera(points, landmarks, pose, valid, width: int, height: int, *, frames=None,
+                     max_points: int = 20000) -> CameraFit:
+    """Fit one camera to a video's capture.
+
+    Parameters
+    ----------
+    points : (T, L, 3) float64
+        Head-frame points per frame (cm), NaN on frames without a face.
+    landmarks : (T, L, 2) float64
+        The tracked landmarks, normalised image coordinates.
+    pose : (T, 4, 4) float64
+        The capture's head pose (head frame to camera space).
+    valid : (T,) bool
+    width, height : int
+        The frame's size in pixels, for the error.
+    frames : indices, optional
+        The frames to fit on (default: every valid frame); the error is measured over the same.
+    max_points : int
+        The fit takes an even spread of at most this many (frame, point) pairs.
+    """
+    points = as_array(points, "points", shape=("T", "L", 3), finite=False)
+    T, L, _ = points.shape
+    landmarks = as_array(landmarks, "landmarks", shape=(T, L, 2), finite=False)
+    valid = np.asarray(valid, dtype=bool)
+    rigid = np.full((T, 6), np.nan)
+    rigid[valid] = rigid_of_pose(np.asarray(pose)[valid])
+    chosen = np.flatnonzero(valid) if frames is None else np.intersect1d(np.asarray(frames), np.flatnonzero(valid))
+    if len(chosen) == 0:
+        raise InputError("no frame with a face to fit the camera on")
+    X = moved(points[chosen], rigid[chosen])
+    x = landmarks[chosen]
+    ok = np.isfinite(X).all(axis=-1) & np.isfinite(x).all(axis=-1)
+    Xf, xf = X[ok], x[ok]
+    step = max(1, len(Xf) // max_points)
+    P = fit_camera(Xf[::step], xf[::step])
+    scale = np.array([width, height], dtype=np.float64)
+    error = np.linalg.norm((project(P, X) - x) * scale, axis=-1)
+    error[~ok] = np.nan
+    per_frame = np.nanmedian(error, axis=1)
+    return CameraFit(P, rigid, float(np.median(per_frame)), float(per_frame.max()), float(np.nanmax(error)))
+
+
+def read_camera(path) -> np.ndarray:
+    """A 3x4 camera from a text file (3 lines of 4 numbers, as :func:`write_camera` writes).
+
+    Raises
+    ------
+    InputError
+        The file is missing.
+    FileFormatError
+        It does not hold 3 rows of 4 finite numbers (the message says what it holds).
+    """
+    from pathlib import Path
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    try:
+        rows = [line.replace(",", " ").split() for line in path.read_text(encoding="utf-8").splitlines()]
+        rows = [[float(v) for v in row] for row in rows if row and not row[0].startswith("#")]
+    except (ValueError, UnicodeDecodeError):
+        raise FileFormatError(path, "a camera must be 3 lines of 4 numbers") from None
+    if len(rows) != 3 or any(len(r) != 4 for r in rows):
+        shape = f"{len(rows)} lines of {sorted({len(r) for r in rows})} numbers" if rows else "no numbers"
+        raise FileFormatError(path, f"a camera must be 3 lines of 4 numbers (a 3x4 matrix), got {shape}")
+    P = np.array(rows)
+    if not np.isfinite(P).all() or np.linalg.matrix_rank(P) < 3:
+        raise FileFormatError(path, "a camera must be a finite 3x4 matrix of rank 3")
+    return P
+
+
+def write_camera(path, camera) -> None:
+    """Write ``camera (3, 4)`` as 3 lines of 4 numbers, complete or not at all."""
+    from ..atomic import atomic_output
+
+    P = as_array(camera, "camera", shape=(3, 4))
+    with atomic_output(path) as tmp:
+        np.savetxt(tmp, P, fmt="%.10g", header="3x4 projection: camera space (cm) -> normalised screen (u right, "
+                                                "v down, [0, 1])")
