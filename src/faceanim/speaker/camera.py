@@ -95,7 +95,7 @@ def to_rigid(rotation, translation) -> np.ndarray:
     """``(..., 6)``: rotation vectors (radians) then translations (cm) of ``rotation (..., 3, 3)`` and
     ``translation (..., 3)``; the optimiser's six uncoupled parameters."""
     R = np.asarray(rotation, dtype=np.float64)
-    vectors = Rotation.from_matrix(R.reshape(-1, 3, 3)).as_rotvec().reshape(*R.shape[:-2], 3)
+    vectors = Rotation.from_matrix(np.array(R.reshape(-1, 3, 3))).as_rotvec().reshape(*R.shape[:-2], 3)
     return np.concatenate([vectors, np.asarray(translation, dtype=np.float64)], axis=-1)
 
 
@@ -104,7 +104,7 @@ def from_rigid(rigid) -> tuple[np.ndarray, np.ndarray]:
     r = np.asarray(rigid, dtype=np.float64)
     if r.shape[-1:] != (6,):
         raise ValueError(f"rigid must have shape (..., 6), got {r.shape}")
-    R = Rotation.from_rotvec(r.reshape(-1, 6)[:, :3]).as_matrix().reshape(*r.shape[:-1], 3, 3)
+    R = Rotation.from_rotvec(np.array(r.reshape(-1, 6)[:, :3])).as_matrix().reshape(*r.shape[:-1], 3, 3)
     return R, r[..., 3:].copy()
 
 
