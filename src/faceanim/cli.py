@@ -115,6 +115,9 @@ def _parser() -> argparse.ArgumentParser:
                                 "the lips', jaw's and cheeks' FAPs regenerated from the articulatory parameters "
                                 "that best explain those received, missing ones filled in")
         if name == "animate":
+            p.description += (" A --target .glb whose morph targets carry ARKit or FACS AU names (faceanim rig's, or "
+                              "another tool's) is a named rig: its own targets are animated (weights solved per "
+                              "frame), and VIDEO may also be a Live Link Face CSV or an OpenFace / py-feat AU CSV.")
             p.add_argument("--fap", metavar="OUT.fap", help="also write the video's FAPs")
             p.add_argument("--via", choices=("motion", "faps"), default="motion",
                            help="motion (default): every tracked point the target shares moves it, in 3D; "
@@ -145,6 +148,32 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, metavar="SPEECH.fap")
     p.add_argument("--params-csv", metavar="PARAMS.csv", help="also write the parameters per frame")
     _capture_arguments(p, image=False)
+    p = speaker.add_parser("textures", help="add the clone's key postures, textures and colour model to a model",
+                           description="Track VIDEO (the speaker's), fit its camera and the head's rigid motion, "
+                                       "choose three key postures (rest, open, rounded), re-project their textures "
+                                       "onto the mesh (512x512) and learn the lip/skin colour model; write them into "
+                                       "the speaker file (-o may be the --model file itself).")
+    p.add_argument("video", metavar="VIDEO")
+    p.add_argument("--model", required=True, metavar="SPEAKER.npz")
+    p.add_argument("-o", "--output", required=True, metavar="SPEAKER.npz")
+    p.add_argument("--frames", metavar="START:END", help="choose key postures among these frames (end exclusive; "
+                                                         "give the model's build frames)")
+    p.add_argument("--camera-out", metavar="CAM.txt", help="also write the fitted 3x4 camera")
+    p.add_argument("--motion-out", metavar="MOTION.csv", help="also write the head's rigid motion per frame")
+    _capture_arguments(p, image=False)
+    p = speaker.add_parser("render", help="draw the clone video-realistically from parameters",
+                           description="Draw the speaker's clone (a model with textures) at each frame's parameters: "
+                                       "the key textures mixed pixel by pixel with weights that follow the posture.")
+    p.add_argument("--model", required=True, metavar="SPEAKER.npz")
+    p.add_argument("--params", required=True, metavar="P.csv",
+                   help="frame, timestamp and one column per parameter (faceanim speaker analyse --params-csv)")
+    p.add_argument("--motion", metavar="M.csv", help="the head's rigid motion per frame: frame, rx, ry, rz (rotation "
+                                                     "vector, radians), tx, ty, tz (cm); default: still")
+    p.add_argument("--camera", metavar="CAM.txt", help="a 3x4 projection (3 lines of 4 numbers); default the model's")
+    p.add_argument("--background", metavar="IMAGE|VIDEO", help="drawn behind the clone; its size and rate are the "
+                                                                "output's")
+    p.add_argument("--wireframe", action="store_true", help="draw the mesh's edges over the clone")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.mp4")
 
     p = commands.add_parser("avatar", help="a textured 3D face from a portrait",
                             description="Make an animatable 3D face from a portrait photo: the tracker's face "
@@ -199,7 +228,8 @@ def _parser() -> argparse.ArgumentParser:
     group.add_argument("--emotion", metavar="NAME", help="joy, sadness, anger, fear, disgust or surprise")
     p.add_argument("--intensity", type=float, metavar="X", help="scales an --emotion (default 1; above 1 exaggerates)")
     _target_arguments(p)
-    p.add_argument("--frames", type=int, metavar="N", help="an onset-apex-offset animation of N frames")
+    p.add_argument("--frames", type=int, metavar="N", help="an onset-apex-offset animation of N frames (on a --target "
+                   ".glb whose morph targets carry AU or ARKit names: those sliders are animated)")
     p.add_argument("--fps", type=float, default=25.0, help="frame rate of the animation (default 25)")
     p.add_argument("--route", choices=("direct", "generic"), default="direct",
                    help="direct: muscles on the target itself (default); generic: made on the generic face and "
@@ -416,6 +446,9 @@ def _run(args, progress) -> str:
                                         head_motion=args.head_motion, obj_sequence=args.obj_sequence,
                                         csv=args.csv, via=args.via, neutral=args.neutral,
                                         smoothing=not args.no_filter, progress=progress, parts=args.parts)
+        if hasattr(animation, "driven"):  # a named rig (faceanim.driving): its own morph targets were animated
+            return (f"wrote {args.output}: {len(animation)} frames on {animation.driven} named morph targets "
+                    f"({len(animation.names)} of the main mesh's)")
         return f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview else "")
     if args.command == "speaker":
         from . import speech
@@ -427,6 +460,22 @@ def _run(args, progress) -> str:
             return (f"wrote {args.output}: {model.parameter_count} parameters ({model.method}: "
                     f"{', '.join(model.parameter_names)}) over {len(model.names)} mobile points and "
                     f"{len(model.fap_columns)} FAPs; {100 * explained:.1f}% of their variance on the frames used")
+        if args.speaker_command in ("textures", "render"):
+            from . import speakerclone
+
+            if args.speaker_command == "textures":
+                appearance, fit = speakerclone.make_textures(
+                    args.video, args.output, model=args.model, frames=args.frames, neutral=args.neutral,
+                    smoothing=not args.no_filter, camera_out=args.camera_out, motion_out=args.motion_out,
+                    progress=progress)
+                keys = ", ".join(f"{n} {f}" for n, f in zip(appearance.key_names, appearance.key_frames, strict=True))
+                return (f"wrote {args.output}: {len(appearance.textures)} textures of {appearance.size}x"
+                        f"{appearance.size} (key frames: {keys}); camera reprojection {fit.median_px:.2f} px median, "
+                        f"{fit.worst_frame_px:.2f} px worst frame")
+            count = speakerclone.render_clone(args.output, model=args.model, params=args.params, motion=args.motion,
+                                              camera=args.camera, background=args.background,
+                                              wireframe=args.wireframe, progress=progress)
+            return f"wrote {args.output}: {count} frames"
         stream, parameters, outside = speech.analyse_speech(
             args.video, args.output, model=args.model, params_csv=args.params_csv, neutral=args.neutral,
             smoothing=not args.no_filter, progress=progress)
