@@ -1,0 +1,379 @@
+"""Analysis by synthesis with the speaker's clone: render its lips, compare with the frame, move the
+articulatory parameters (the ICP platform's tracker, Elisei, Odisio and Bailly 2001).
+
+Per frame, the frame's lip-probability image (the appearance's colour model, adapted to the video's
+lighting) over a small box around the mouth is compared (mean squared difference) with the clone's
+lip-probability image in the same box: the key postures' lip-probability textures mixed with the
+appearance's blending weights, drawn on the :class:`AnalysisMesh` (the lips and their surroundings,
+at most 50 triangles). The difference is minimised over the 6 articulatory parameters by the simplex
+method (Nelder-Mead, 7 vertices), from the previous frame's answer, with a cap on evaluations;
+optionally over the rigid motion too (6 more: a rotation about the mouth and a translation, on top of
+the tracker's head pose).
+
+The analysis mesh is chosen from the model's points by name: 12 points of the outer lip contour and 8
+of the inner (MediaPipe's lip landmarks, every second or third), and a ring of 10 points around the
+mouth (the model's points nearest to an ellipse of 0.95 x 0.7 mouth widths), triangulated again
+(Delaunay over the rest shape's x, y): 30 points, 48 triangles (fewer where points coincide). The key
+textures are read at each point's UV: the analysis mesh is a coarser cut of the same surface.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize
+from scipy.spatial import Delaunay
+
+from ..errors import InputError
+from ..validation import as_array, as_index_array
+from .lipraster import RASTERS, GlLipRaster, NumpyLipRaster, prefilter
+from .model import SpeakerModel
+
+__all__ = ["AnalysisMesh", "analysis_mesh", "CloneAnalyser", "FrameAnswer", "MAX_TRIANGLES", "DEFAULT_MAX_EVALS",
+           "rigid_transform", "pose_matrix"]
+
+MAX_TRIANGLES = 50
+DEFAULT_MAX_EVALS = 150
+
+# MediaPipe's lip contours (outer and inner, each from the right corner along the upper lip and back
+# along the lower), thinned to 12 and 8 points.
+_OUTER = (61, 40, 37, 0, 267, 270, 291, 321, 314, 17, 84, 91)
+_INNER = (78, 81, 13, 311, 308, 402, 14, 178)
+_RING = 10
+_RING_AXES = (0.95, 0.7)  # in mouth widths: the ring lies beyond the box (1.6 x 1.0 mouth widths)
+_BOX = (1.6, 1.0)  # the box around the mouth, in mouth widths
+_BOX_PIXELS = 64  # the box's width in its own pixels (the frame is averaged down to it)
+
+# The simplex's first steps: articulatory parameters in their standard deviations over the build
+# frames; the rigid correction in degrees and centimetres.
+_STEP_ARTICULATORY = 0.5
+_STEP_ROTATION = 1.0
+_STEP_TRANSLATION = 0.1
+
+
+def _mp_name(index: int) -> str:
+    from ..capture.headframe import landmark_names
+
+    return landmark_names(478)[index]
+
+
+@dataclass(frozen=True, eq=False)
+class AnalysisMesh:
+    """The lips and their surroundings as a reduced mesh.
+
+    Parameters
+    ----------
+    points : (V,) int64
+        Indices into the model's mobile then static points.
+    triangles : (F, 3) int64
+        Into ``points``; ``F <= 50``.
+    outer, inner : (12,), (8,) int64
+        The lip contours (indices into ``points``, in order around the mouth).
+    """
+
+    points: np.ndarray
+    triangles: np.ndarray
+    outer: np.ndarray
+    inner: np.ndarray
+
+    def __post_init__(self):
+        points = as_index_array(self.points, "points", upper=np.iinfo(np.int64).max, shape=("V",), frozen=True)
+        V = len(points)
+        object.__setattr__(self, "points", points)
+        object.__setattr__(self, "triangles", as_index_array(self.triangles, "triangles", upper=V, shape=("F", 3),
+                                                             frozen=True))
+        object.__setattr__(self, "outer", as_index_array(self.outer, "outer", upper=V, shape=("L",), frozen=True))
+        object.__setattr__(self, "inner", as_index_array(self.inner, "inner", upper=V, shape=("M",), frozen=True))
+        if len(self.triangles) > MAX_TRIANGLES:
+            raise ValueError(f"an analysis mesh holds at most {MAX_TRIANGLES} triangles, got {len(self.triangles)}")
+
+    @property
+    def lips(self) -> np.ndarray:
+        return np.concatenate([self.outer, self.inner])
+
+
+def analysis_mesh(model: SpeakerModel) -> AnalysisMesh:
+    """The :class:`AnalysisMesh` of ``model`` (see the module's docstring for the choice).
+
+    Raises
+    ------
+    InputError
+        The model lacks MediaPipe's lip points (a model not built by ``faceanim speaker build``).
+    """
+    names = tuple(model.names) + tuple(model.static_names)
+    lookup = {n: i for i, n in enumerate(names)}
+    outer = [lookup[_mp_name(i)] for i in _OUTER if _mp_name(i) in lookup]
+    inner = [lookup[_mp_name(i)] for i in _INNER if _mp_name(i) in lookup]
+    if len(outer) < len(_OUTER) or len(inner) < len(_INNER):
+        raise InputError("the speaker model lacks the lip contour points the analysis needs "
+                         f"({len(_OUTER) - len(outer) + len(_INNER) - len(inner)} of MediaPipe's lip points missing)")
+    everything = np.vstack([model.rest, model.static_points])
+    lips = everything[outer]
+    centre = lips.mean(axis=0)
+    width = np.ptp(lips[:, 0])
+    taken = set(outer + inner)
+    ring = []
+    for angle in np.linspace(0, 2 * np.pi, _RING, endpoint=False):
+        target = centre[:2] + width * np.array([_RING_AXES[0] * np.cos(angle), _RING_AXES[1] * np.sin(angle)])
+        distance = np.linalg.norm(everything[:, :2] - target, axis=1)
+        distance[list(taken)] = np.inf
+        best = int(np.argmin(distance))
+        taken.add(best)
+        ring.append(best)
+    chosen = np.array(outer + inner + ring)
+    triangles = Delaunay(everything[chosen, :2]).simplices.astype(np.int64)
+    while len(triangles) > MAX_TRIANGLES:  # points that coincide at rest leave a hull of fewer points
+        chosen = np.delete(chosen, len(outer) + len(inner) - 1)
+        inner = inner[:-1]
+        triangles = Delaunay(everything[chosen, :2]).simplices.astype(np.int64)
+    return AnalysisMesh(chosen, triangles, np.arange(len(outer)), len(outer) + np.arange(len(inner)))
+
+
+def _project(camera, pose, points) -> np.ndarray:
+    """``(N, 2)`` normalised screen coordinates (:mod:`.camera`: u across, v down, [0, 1] over the
+    frame) of head-frame ``points (N, 3)`` moved by the rigid motion ``pose (4, 4)`` into camera space
+    and seen by ``camera (3, 4)``."""
+    moved = points @ pose[:3, :3].T + pose[:3, 3]
+    h = moved @ camera[:, :3].T + camera[:, 3]
+    return h[:, :2] / h[:, 2:3]
+
+
+def pose_matrix(rigid) -> np.ndarray:
+    """``(4, 4)`` or ``(T, 4, 4)``: the rigid motion ``rigid (6,)`` or ``(T, 6)`` (:func:`.camera.to_rigid`:
+    a rotation vector in radians, a translation in cm) as a matrix."""
+    from .camera import from_rigid
+
+    R, t = from_rigid(rigid)
+    M = np.zeros((*R.shape[:-2], 4, 4))
+    M[..., :3, :3], M[..., :3, 3], M[..., 3, 3] = R, t, 1.0
+    return M
+
+
+def rigid_transform(correction, centre) -> np.ndarray:
+    """(4, 4) the rigid correction ``(rx, ry, rz, tx, ty, tz)`` (a rotation vector in degrees about
+    ``centre (3,)``, then a translation in cm), in the head frame."""
+    from scipy.spatial.transform import Rotation
+
+    c = np.asarray(correction, dtype=np.float64)
+    R = Rotation.from_rotvec(np.radians(c[:3])).as_matrix()
+    M = np.eye(4)
+    M[:3, :3] = R
+    M[:3, 3] = centre - R @ centre + c[3:]
+    return M
+
+
+@dataclass(frozen=True)
+class FrameAnswer:
+    """One frame's analysis: ``parameters (K,)``, the rigid ``correction (6,)`` (zeros without
+    ``rigid``), the ``pose (4, 4)`` it gives, the ``evaluations`` spent and the final ``cost`` (mean
+    squared difference of lip probability over the box)."""
+
+    parameters: np.ndarray
+    correction: np.ndarray
+    pose: np.ndarray
+    evaluations: int
+    cost: float
+
+
+class _Spent(Exception):
+    pass
+
+
+class CloneAnalyser:
+    """The analysis by synthesis of one video's frames with one speaker's clone; holds the analysis
+    mesh, the box, the rasteriser (a GL context for ``raster="gl"``) and the colour model adapted to
+    the video. A context manager.
+
+    Parameters
+    ----------
+    model : SpeakerModel
+    appearance : Appearance
+        The clone's appearance (:mod:`faceanim.speaker.appearance`): ``uv``, ``lip_textures``,
+        ``weights(points)``, ``colour``, ``camera``.
+    width, height : int
+        The frames' size in pixels (one field's rows with ``field``).
+    mouth_width : float
+        The mouth's width in the frames, pixels (sets the box: 1.6 x 1.0 mouth widths).
+    max_evals : int
+        The cap on evaluations of the difference per frame (the simplex's first 7 included).
+    rigid : bool
+        Also analyse a rigid correction of the head pose (6 more parameters).
+    raster : {"numpy", "gl"}
+    field : {None, "top", "bottom"}
+        The frames are one field of interlaced footage: rows 0, 2, ... (top) or 1, 3, ... (bottom) of
+        the frames the camera was fitted on.
+    camera : (3, 4) float64, optional
+        The video's camera (:mod:`.camera`); default the appearance's (the video it was made from).
+    """
+
+    def __init__(self, model: SpeakerModel, appearance, *, width: int, height: int, mouth_width: float,
+                 max_evals: int = DEFAULT_MAX_EVALS, rigid: bool = False, raster: str = "numpy", field=None,
+                 camera=None):
+        if raster not in RASTERS:
+            raise ValueError(f"raster must be one of {', '.join(RASTERS)}, got {raster!r}")
+        if field not in (None, "top", "bottom"):
+            raise ValueError(f"field must be None, top or bottom, got {field!r}")
+        K = model.parameter_count
+        if isinstance(max_evals, bool) or not isinstance(max_evals, (int, np.integer)) or max_evals < K + 1:
+            raise ValueError(f"max_evals must be a whole number from {K + 1} (the simplex's vertices), "
+                             f"got {max_evals!r}")
+        self.model, self.appearance = model, appearance
+        self.mesh = analysis_mesh(model)
+        self.rigid, self.max_evals, self.field = bool(rigid), int(max_evals), field
+        self.width, self.height = int(width), int(height)
+        P = len(model.names)
+        N = P + len(model.static_names)
+        self._rest = np.vstack([model.rest, model.static_points])  # (N, 3)
+        self._basis = np.zeros((K, N, 3))
+        self._basis[:, :P] = model.basis
+        self._sub_rest = self._rest[self.mesh.points]
+        self._sub_basis = self._basis[:, self.mesh.points]
+        self._centre = self._sub_rest[self.mesh.outer].mean(axis=0)
+        self._camera = as_array(appearance.camera if camera is None else camera, "camera", shape=(3, 4))
+        self._rows = 0.5 if field else 1.0
+        # the box: its size fixed for the video, its place following the mouth
+        self.factor = max(1, int(round(_BOX[0] * mouth_width / _BOX_PIXELS)))
+        self.box_width = int(np.ceil(_BOX[0] * mouth_width / self.factor))
+        self.box_height = max(4, int(np.ceil(_BOX[1] * mouth_width * self._rows / self.factor)))
+        uv = np.asarray(appearance.uv, dtype=np.float64)[self.mesh.points]
+        textures = np.asarray(appearance.lip_textures, dtype=np.float32)
+        S = textures.shape[-1]
+        corners = uv[self.mesh.outer]
+        texels = S * np.ptp(corners[:, 0]) / max(mouth_width / self.factor, 1e-9)  # texels per box pixel
+        kind = NumpyLipRaster if raster == "numpy" else GlLipRaster
+        self.raster = kind(self.mesh.triangles, uv, prefilter(textures, texels),
+                           width=self.box_width, height=self.box_height)
+        self.colour = appearance.colour
+
+    # ---- geometry
+
+    def full_points(self, parameters) -> np.ndarray:
+        """(N, 3) the mobile then static points at ``parameters (K,)`` (cm, head frame)."""
+        return self._rest + np.tensordot(parameters, self._basis, axes=1)
+
+    def pixels(self, points, pose) -> np.ndarray:
+        """(N, 2) the frames' pixel coordinates (x right, y down; one field's rows with ``field``) of
+        head-frame ``points`` under ``pose``."""
+        xy = _project(self._camera, pose, points) * [self.width, self.height / self._rows]
+        if self.field:
+            xy[:, 1] = (xy[:, 1] - (self.field == "bottom") + 0.5) / 2.0
+        return xy
+
+    def box_origin(self, parameters, pose) -> tuple[int, int]:
+        """The box's top-left frame pixel for the mouth at ``parameters`` and ``pose`` (it may lie
+        outside the frame: see :meth:`box_inside`)."""
+        lips = self.pixels(self._sub_rest[self.mesh.outer] + np.tensordot(
+            parameters, self._sub_basis[:, self.mesh.outer], axes=1), pose)
+        centre = lips.mean(axis=0)
+        return (int(round(centre[0] - 0.5 * self.box_width * self.factor)),
+                int(round(centre[1] - 0.5 * self.box_height * self.factor)))
+
+    def box_inside(self, origin) -> bool:
+        x0, y0 = origin
+        return (x0 >= 0 and y0 >= 0 and x0 + self.box_width * self.factor <= self.width
+                and y0 + self.box_height * self.factor <= self.height)
+
+    def pose_of(self, base_pose, correction) -> np.ndarray:
+        return base_pose if not self.rigid else base_pose @ rigid_transform(correction, self._centre)
+
+    # ---- images
+
+    def frame_image(self, image, origin) -> np.ndarray:
+        """``(box_height, box_width) float32``: the lip probability of ``image`` over the box at
+        ``origin``, averaged over the box's pixels."""
+        x0, y0 = origin
+        f = self.factor
+        crop = image[y0:y0 + self.box_height * f, x0:x0 + self.box_width * f]
+        probability = np.asarray(self.colour.probability(np.ascontiguousarray(crop)), dtype=np.float32)
+        return probability.reshape(self.box_height, f, self.box_width, f).mean(axis=(1, 3))
+
+    def clone_image(self, parameters, pose, origin) -> np.ndarray:
+        """``(box_height, box_width) float32``: the clone's lip probability over the box at ``origin``."""
+        full = self.full_points(parameters)
+        xy = (self.pixels(full[self.mesh.points], pose) - origin) / self.factor
+        return self.raster(xy, self.appearance.weights(full))
+
+    def lip_mask(self, parameters, pose, origin, shape) -> np.ndarray:
+        """(h, w) bool: the frame's pixels (from ``origin``, ``shape``) between the clone's outer and
+        inner lip contours at ``parameters`` and ``pose``."""
+        import cv2
+
+        xy = self.pixels(self.full_points(parameters)[self.mesh.points], pose) - origin
+        mask = np.zeros(shape, np.uint8)
+        cv2.fillPoly(mask, [np.round(xy[self.mesh.outer] * 16).astype(np.int32)], 1, shift=4)
+        cv2.fillPoly(mask, [np.round(xy[self.mesh.inner] * 16).astype(np.int32)], 0, shift=4)
+        return mask.astype(bool)
+
+    def adapt(self, images, parameters, poses) -> None:
+        """Adapt the colour model to the video's lighting from its first frames: ``images`` (a few
+        frames), the clone's ``parameters`` and ``poses`` on them (the landmark-based analysis) giving
+        each frame's lip pixels."""
+        crops, masks = [], []
+        for image, a, pose in zip(images, parameters, poses, strict=True):
+            origin = self.box_origin(a, pose)
+            if not self.box_inside(origin):
+                continue
+            h, w = self.box_height * self.factor, self.box_width * self.factor
+            crops.append(image[origin[1]:origin[1] + h, origin[0]:origin[0] + w])
+            masks.append(self.lip_mask(a, pose, origin, (h, w)))
+        if crops and np.concatenate(masks).any():
+            self.colour = self.appearance.colour.adapted(np.ascontiguousarray(np.concatenate(crops)),
+                                                         np.concatenate(masks))
+
+    # ---- the simplex
+
+    def _simplex(self, x0: np.ndarray) -> np.ndarray:
+        K = self.model.parameter_count
+        steps = np.full(len(x0), _STEP_ARTICULATORY)
+        if self.rigid:
+            steps[K:K + 3], steps[K + 3:] = _STEP_ROTATION, _STEP_TRANSLATION
+        return np.vstack([x0, x0 + np.diag(steps)])
+
+    def analyse(self, image, start, base_pose, correction=None) -> FrameAnswer:
+        """One frame: the parameters (and with ``rigid`` the correction) minimising the difference of
+        lip probability, from ``start (K,)`` (and ``correction (6,)``); the box placed at the start.
+
+        ``image``: ``(height, width, 3) uint8`` (one field's rows with ``field``); ``base_pose (4, 4)``:
+        the tracker's head pose on that frame."""
+        K = self.model.parameter_count
+        start = as_array(start, "start", shape=(K,))
+        correction = np.zeros(6) if correction is None else as_array(correction, "correction", shape=(6,))
+        base_pose = as_array(base_pose, "base_pose", shape=(4, 4))
+        origin = self.box_origin(start, self.pose_of(base_pose, correction))
+        if not self.box_inside(origin):
+            raise InputError("the mouth leaves the frame")
+        target = self.frame_image(image, origin)
+        count = 0
+        best = [np.inf, None]
+
+        def cost(x):
+            nonlocal count
+            if count >= self.max_evals:
+                raise _Spent
+            count += 1
+            pose = self.pose_of(base_pose, x[K:]) if self.rigid else base_pose
+            value = float(np.mean((self.clone_image(x[:K], pose, origin) - target) ** 2))
+            if value < best[0]:
+                best[0], best[1] = value, x.copy()
+            return value
+
+        x0 = np.concatenate([start, correction]) if self.rigid else start.copy()
+        try:
+            minimize(cost, x0, method="Nelder-Mead",
+                     options={"initial_simplex": self._simplex(x0), "maxfev": self.max_evals,
+                              "xatol": 1e-3, "fatol": 1e-7})
+        except _Spent:
+            pass
+        x = best[1]
+        found = x[K:] if self.rigid else np.zeros(6)
+        return FrameAnswer(x[:K], found, self.pose_of(base_pose, found), count, best[0])
+
+    def close(self):
+        self.raster.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

@@ -1,0 +1,255 @@
+"""Analysis by synthesis with the speaker's clone (issue 18): the lip-probability rasteriser, the
+simplex tracker on frames rendered by a synthetic clone, and ``faceanim speaker track``'s bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.ndimage import gaussian_filter
+
+from faceanim.capture.headframe import landmark_names
+from faceanim.mpeg4 import Fapu
+from faceanim.speaker.analysis import MAX_TRIANGLES, CloneAnalyser, analysis_mesh, pose_matrix
+from faceanim.speaker.appearance import Appearance, influence_of, posture_points
+from faceanim.speaker.colour import ColourModel
+from faceanim.speaker.lipraster import NumpyLipRaster, prefilter
+from faceanim.speaker.model import SpeakerModel
+
+LIP, SKIN, MOUTH = np.array([170.0, 55, 70]), np.array([210.0, 165, 135]), np.array([245.0, 240, 230])
+_OUTER = (61, 40, 37, 0, 267, 270, 291, 321, 314, 17, 84, 91)
+_INNER = (78, 81, 13, 311, 308, 402, 14, 178)
+
+
+def _ellipse(count, a, b, start=np.pi):
+    angle = start - np.arange(count) * 2 * np.pi / count
+    return np.c_[a * np.cos(angle), b * np.sin(angle), np.zeros(count)]
+
+
+def synthetic_model() -> SpeakerModel:
+    """A mouth of 5 cm in the head frame's x-y plane: MediaPipe's lip points on two ellipses, a ring
+    of mobile points around them, static points beyond; six displacement patterns (jaw, opening,
+    rounding, upper lip, lower lip, corners)."""
+    names = landmark_names(478)
+    outer, inner = _ellipse(12, 2.5, 1.0), _ellipse(8, 1.9, 0.35)
+    around = _ellipse(10, 3.4, 1.9, start=0.3)
+    mobile = np.vstack([outer, inner, around])
+    mobile_names = [names[i] for i in _OUTER] + [names[i] for i in _INNER] + [f"c{i}" for i in range(10)]
+    static = np.vstack([_ellipse(16, 5.2, 3.6, start=0.1), [[-7, -5, 0], [7, -5, 0], [7, 5, 0], [-7, 5, 0]]])
+    x, y = mobile[:, 0], mobile[:, 1]
+    lips = np.r_[np.ones(20), np.zeros(10)].astype(bool)
+    lower, upper = y < -1e-9, y > 1e-9
+    basis = np.zeros((6, len(mobile), 3))
+    outer_lip, inner_lip = np.arange(30) < 12, (np.arange(30) >= 12) & (np.arange(30) < 20)
+    basis[0, lips & lower, 1] = -0.35  # jaw: the lower lip and the opening's lower edge
+    basis[0, ~lips & lower, 1] = -0.2
+    basis[1, inner_lip, 1] = np.sign(y[inner_lip]) * 0.18  # opening: the inner contour only
+    basis[2, lips, 0] = -0.12 * x[lips]  # rounding
+    basis[2, lips, 2] = 0.2
+    basis[3, lips & upper, 1] = 0.2  # upper lip
+    basis[4, outer_lip & lower, 1] = -0.2  # lower lip: its outer edge
+    basis[4, outer_lip & lower, 2] = 0.15
+    basis[5, lips, 1] = 0.25 * (x[lips] / 2.5) ** 2  # corners
+    from scipy.spatial import Delaunay
+
+    everything = np.vstack([mobile, static])
+    triangles = Delaunay(everything[:, :2]).simplices
+    fapu = Fapu(0.6, 6.5, 4.4, 2.0, 5.0)
+    return SpeakerModel(tuple(mobile_names), mobile, mobile, basis, ("jaw", "opening", "rounding", "upper", "lower",
+                                                                     "corners"),
+                        tuple(f"s{i}" for i in range(len(static))), static, triangles, fapu,
+                        np.tile([-2.0, 2.0], (6, 1)), 25.0)
+
+
+def synthetic_appearance(model: SpeakerModel, camera, size: int = 128) -> Appearance:
+    """Three key postures, each texture the lips (red), the mouth's opening (dark) and skin over a
+    frontal UV of the rest shape; the colour model learnt from those colours."""
+    rest = np.vstack([model.rest, model.static_points])
+    lo, hi = rest[:, :2].min(axis=0), rest[:, :2].max(axis=0)
+    uv = np.c_[(rest[:, 0] - lo[0]) / (hi[0] - lo[0]), (hi[1] - rest[:, 1]) / (hi[1] - lo[1])]
+    u, v = np.meshgrid((np.arange(size) + 0.5) / size, (np.arange(size) + 0.5) / size)
+    x, y = lo[0] + u * (hi[0] - lo[0]), hi[1] - v * (hi[1] - lo[1])
+    outside = (x / 2.5) ** 2 + (y / 1.0) ** 2
+    opening = (x / 1.9) ** 2 + (y / 0.35) ** 2
+    texture = np.where((outside <= 1)[..., None], LIP, SKIN)
+    texture = np.where((opening <= 1)[..., None], MOUTH, texture)
+    texture = gaussian_filter(texture, sigma=(2.0, 2.0, 0))  # a photograph's soft edges
+    keys = np.array([np.zeros(6), [0, 2.0, 0, 0, 0, 0], [0, 0, 2.0, 0, 0, 0]])
+    textures = np.stack([texture, texture * 0.97, texture * 1.02]).clip(0, 255).astype(np.uint8)
+    lips = (outside <= 1) & (opening > 1.3)
+    skin = (outside > 1.5) & (outside < 4)
+    colour = ColourModel.fit(texture[lips], texture[skin])  # as the appearance learns it: from its key frames
+    key_points = posture_points(model, keys)
+    return Appearance(uv.astype(np.float32), keys, key_points, textures,
+                      np.stack([colour.probability(t) for t in textures]), influence_of(key_points), colour, camera)
+
+
+def synthetic_camera(width: int = 160, height: int = 160, distance: float = 30.0) -> np.ndarray:
+    """(3, 4) to normalised screen coordinates, looking at the mouth from +z."""
+    from faceanim.render.camera import Camera, look_at
+
+    pixels = Camera(look_at((0, 0, distance), (0, 0, 0)), 22.0, width, height).projection
+    return np.diag([1.0 / width, 1.0 / height, 1.0]) @ pixels
+
+
+def render_frame(model, appearance, parameters, pose, width, height, *, gain=1.0, background=None,
+                 analysis=True) -> np.ndarray:
+    """``(height, width, 3) uint8``: the clone at ``parameters`` and ``pose``, its textures mixed by the
+    appearance's weights, over ``background`` (skin), lit by ``gain``; drawn on the analysis mesh (the
+    tracker's own model of the image: a noise-free known answer), or on the whole mesh."""
+    from faceanim.speaker.analysis import _project
+
+    full = posture_points(model, np.asarray(parameters)[None])[0]
+    xy = _project(np.asarray(appearance.camera), pose, full) * [width, height]
+    weights = appearance.weights(full)
+    image = np.empty((height, width, 3))
+    points, triangles = np.arange(len(full)), model.triangles
+    if analysis:
+        mesh = analysis_mesh(model)
+        points, triangles = mesh.points, mesh.triangles
+    for c in range(3):
+        raster = NumpyLipRaster(triangles, appearance.uv[points], appearance.textures[..., c].astype(np.float32),
+                                width=width, height=height, background=np.nan)
+        image[..., c] = raster(xy[points], weights)
+    back = np.broadcast_to(SKIN, image.shape) if background is None else background
+    image = np.where(np.isnan(image), back, image)
+    return np.clip(image * gain, 0, 255).astype(np.uint8)
+
+
+@pytest.fixture(scope="module")
+def clone():
+    model = synthetic_model()
+    camera = synthetic_camera()
+    return model, synthetic_appearance(model, camera)
+
+
+# ---- the rasteriser
+
+
+def test_a_triangle_covers_the_pixel_centres_inside_it():
+    """A right triangle with legs of 10 pixels on pixel corners covers the 55 pixel centres under its
+    hypotenuse (10 + 9 + ... + 1), half its area up to the diagonal's pixels."""
+    raster = NumpyLipRaster([[0, 1, 2]], [[0, 0], [1, 0], [0, 1]], np.ones((1, 2, 2), np.float32), width=16,
+                            height=16)
+    image = raster([[2.0, 3.0], [12.0, 3.0], [2.0, 13.0]], [1.0])
+    assert image.sum() == 55
+    assert image[3, 2] == 1 and image[12, 2] == 1 and image[3, 11] == 1 and image[12, 11] == 0
+
+
+def test_the_texture_is_read_bilinearly_at_the_interpolated_uv():
+    """A texture that is a linear ramp comes back as the same ramp over a square mapped onto it."""
+    s = 32
+    ramp = np.tile(((np.arange(s) + 0.5) / s).astype(np.float32), (s, 1))[None]  # value = u
+    raster = NumpyLipRaster([[0, 1, 2], [0, 2, 3]], [[0, 0], [1, 0], [1, 1], [0, 1]], ramp, width=20, height=20)
+    image = raster([[0, 0], [20, 0], [20, 20], [0, 20]], [1.0])
+    u = (np.arange(20) + 0.5) / 20
+    inner = (u > 1 / s) & (u < 1 - 1 / s)  # away from the clamped edge texels
+    assert np.allclose(image[:, inner], u[inner], atol=1e-5)
+
+
+def test_the_mix_follows_the_weights():
+    textures = np.stack([np.full((4, 4), 0.2), np.full((4, 4), 1.0)]).astype(np.float32)
+    raster = NumpyLipRaster([[0, 1, 2]], [[0, 0], [1, 0], [0, 1]], textures, width=8, height=8)
+    image = raster([[0, 0], [8, 0], [0, 8]], [0.25, 0.75])
+    assert np.allclose(image[image > 0], 0.8)
+
+
+def test_prefilter_keeps_the_mean_and_a_ramp():
+    ramp = np.tile(np.arange(32, dtype=np.float32), (32, 1))[None]
+    filtered = prefilter(ramp, 6.0)
+    assert np.allclose(filtered[0, :, 8:24], ramp[0, :, 8:24], atol=1e-4)  # linear: unchanged away from edges
+    assert np.array_equal(prefilter(ramp, 0.5), ramp)  # under a texel: bilinear reading is the filter
+
+
+def test_numpy_and_gl_rasterisers_agree():
+    """The same mesh and textures give the same image to float precision (pixels whose centre lies
+    exactly on an edge aside)."""
+    pytest.importorskip("moderngl")
+    from scipy.spatial import Delaunay
+
+    from faceanim.speaker.lipraster import GlLipRaster
+
+    rng = np.random.default_rng(0)
+    xy = np.r_[rng.uniform(4, 44, (20, 2)), [[1, 1], [47, 1], [47, 35], [1, 35]]]
+    xy[:, 1] *= 35 / 47
+    triangles = Delaunay(xy).simplices
+    uv = xy / [48, 36]
+    textures = rng.uniform(0, 1, (3, 16, 16)).astype(np.float32)
+    weights = [0.5, 0.3, 0.2]
+    mine = NumpyLipRaster(triangles, uv, textures, width=48, height=36)(xy, weights)
+    try:
+        gl = GlLipRaster(triangles, uv, textures, width=48, height=36)
+    except RuntimeError as exc:
+        pytest.skip(f"no OpenGL context: {exc}")
+    with gl:
+        theirs = gl(xy, weights)
+    assert np.abs(mine - theirs).max() < 1e-5
+
+
+# ---- the analysis mesh and the tracker
+
+
+def test_the_analysis_mesh_is_small_and_holds_the_lips(clone):
+    model, _ = clone
+    mesh = analysis_mesh(model)
+    assert len(mesh.triangles) <= MAX_TRIANGLES
+    assert len(mesh.outer) == 12 and len(mesh.inner) == 8
+    names = tuple(model.names) + tuple(model.static_names)
+    assert names[mesh.points[mesh.outer[3]]] == "8.1"  # the upper lip's middle
+
+
+def _analyser(model, appearance, **options):
+    width = 160
+    lips = posture_points(model, np.zeros((1, 6)))[0][:12]
+    from faceanim.speaker.analysis import _project
+
+    xy = _project(np.asarray(appearance.camera), np.eye(4), lips) * width
+    return CloneAnalyser(model, appearance, width=width, height=160, mouth_width=float(np.ptp(xy[:, 0])), **options)
+
+
+def _sequence(count=8):
+    t = np.linspace(0, 1, count)[:, None]
+    return np.c_[np.sin(3 * t), 0.8 * np.sin(5 * t + 1), -0.6 * t, 0.5 * np.cos(4 * t), 0.4 * t, -0.3 * np.sin(6 * t)]
+
+
+def test_the_tracker_recovers_known_parameters_from_noise_free_frames(clone):
+    model, appearance = clone
+    truth = _sequence()
+    with _analyser(model, appearance, max_evals=400) as analyser:
+        found, start = [], truth[0] + 0.3
+        for a in truth:
+            answer = analyser.analyse(render_frame(model, appearance, a, np.eye(4), 160, 160), start, np.eye(4))
+            found.append(answer.parameters)
+            start = answer.parameters
+    error = np.sqrt(((np.array(found) - truth) ** 2).mean(axis=0))
+    assert error.max() < 0.1, error
+
+
+def test_the_tracker_follows_a_lighting_change_once_adapted(clone):
+    model, appearance = clone
+    truth = _sequence(6)
+    frames = [render_frame(model, appearance, a, np.eye(4), 160, 160, gain=0.75) for a in truth]
+    with _analyser(model, appearance, max_evals=300) as analyser:
+        analyser.adapt(frames[:1], truth[:1], [np.eye(4)])
+        found, start = [], truth[0]
+        for frame in frames:
+            answer = analyser.analyse(frame, start, np.eye(4))
+            found.append(answer.parameters)
+            start = answer.parameters
+    error = np.sqrt(((np.array(found) - truth) ** 2).mean(axis=0))
+    assert error.max() < 0.25, error
+
+
+def test_evaluations_never_exceed_the_cap(clone):
+    model, appearance = clone
+    frame = render_frame(model, appearance, np.full(6, 0.8), np.eye(4), 160, 160)
+    for cap in (7, 20, 57):
+        with _analyser(model, appearance, max_evals=cap) as analyser:
+            answer = analyser.analyse(frame, np.zeros(6), np.eye(4))
+        assert answer.evaluations <= cap
+    with _analyser(model, appearance, max_evals=40, rigid=True) as analyser:
+        answer = analyser.analyse(frame, np.zeros(6), np.eye(4))
+    assert answer.evaluations <= 40 and answer.correction.shape == (6,)
+
+
+def test_pose_matrix_of_no_motion_is_the_identity():
+    assert np.allclose(pose_matrix(np.zeros(6)), np.eye(4))
