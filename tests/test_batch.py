@@ -134,3 +134,76 @@ def _blank_png() -> bytes:
     buffer = io.BytesIO()
     Image.new("RGB", (64, 64), (120, 120, 120)).save(buffer, format="PNG")
     return buffer.getvalue()
+
+
+def test_leftover_temporaries_are_removed_and_nothing_else(tmp_path):
+    from faceanim.dataset import remove_leftovers
+    from faceanim.manifest import Video
+
+    video = Video(tmp_path / "smiles.mp4", "smiles")
+    ours = [".smiles.fap.k2x_9abq.fap", ".smiles_take.csv.00000000.csv", ".batch_summary.csv.abcdefgh.csv",
+            ".faceanim-probe-zz_1y2x3"]
+    theirs = [".smiles.fap.notes", ".smiles.fap.k2x_9abq.fap.bak", ".other.fap.k2x_9abq.fap",
+              ".smiles.glb.k2x_9abq.glb", "smiles.fap.k2x_9abq.fap", ".smiles.fap.K2X_9ABQ.fap", ".hidden"]
+    for name in ours + theirs:
+        (tmp_path / name).write_text("x")
+    (tmp_path / ".smiles_aus.csv.k2x_9abq.csv").mkdir()  # a folder by that name: not a file faceanim left
+    removed = remove_leftovers(tmp_path, [video], ("encode", "aus", "blendshapes"))
+    assert sorted(p.name for p in removed) == sorted(ours)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(theirs + [".smiles_aus.csv.k2x_9abq.csv"])
+
+
+def test_progress_over_videos_and_frames(tmp_path):
+    import io
+
+    pytest.importorskip("ray", reason="faceanim batch runs on Ray (the batch extra)")
+    pytest.importorskip("mediapipe", reason="capture needs faceanim[capture]")
+    pytest.importorskip("tqdm", reason="bars are drawn by tqdm")
+    from faceanim.dataset import run_batch
+    from faceanim.progress import Progress
+
+    d0 = shared("videos", "d0.mp4")
+    (tmp_path / "broken.mp4").write_bytes(b"not a video")
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / ".d0.fap.a1b2c3d4.fap").write_text("half a file")  # left by a run stopped mid-write
+    shown = io.StringIO()
+    result = run_batch([d0, tmp_path / "broken.mp4"], tmp_path / "out", do="encode", workers=2,
+                       progress=Progress(shown, bars=True))
+    assert [v.status for v in result.videos] == ["done", "failed"]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["batch_summary.csv", "d0.fap"]
+    drawn = shown.getvalue()
+    assert "encode on 2 videos: 100%" in drawn and "2/2" in drawn  # the videos' bar, at its end
+    assert "frames tracked: 78 frames" in drawn  # every frame of d0 reported by its task
+    quiet = io.StringIO()  # off a terminal: one line, no bar
+    run_batch([d0], tmp_path / "out", do="encode", workers=1, progress=Progress(quiet))
+    assert quiet.getvalue() == "faceanim: encode on 1 videos (1 videos)...\n"
+
+
+def test_an_interrupted_batch_leaves_no_temporary_file(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    pytest.importorskip("ray", reason="faceanim batch runs on Ray (the batch extra)")
+    pytest.importorskip("mediapipe", reason="capture needs faceanim[capture]")
+    d10 = shared("videos", "d10.mp4")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    batch = subprocess.Popen([sys.executable, "-m", "faceanim", "batch", str(d10), "-o", str(out), "--do",
+                              "encode,aus,blendshapes,animate", "--workers", "1"],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while batch.poll() is None and time.monotonic() < deadline:  # until a worker is writing an output
+        if any(p.name.startswith(".d10.") for p in out.iterdir()):
+            break
+        time.sleep(0.02)
+    assert batch.poll() is None, batch.communicate()
+    assert any(p.name.startswith(".d10.") for p in out.iterdir()), "no output was being written"
+    os.kill(batch.pid, signal.SIGINT)
+    _, err = batch.communicate(timeout=60)
+    assert batch.returncode == 128 + signal.SIGINT, err
+    assert err.strip().splitlines()[-1] == "faceanim: interrupted"
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]  # no output, no temporary, the user's file kept

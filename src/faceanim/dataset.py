@@ -15,6 +15,7 @@ a face tracked, seconds, outputs, error.
 from __future__ import annotations
 
 import os
+import re
 import socket
 import time
 from dataclasses import dataclass, field
@@ -22,8 +23,10 @@ from pathlib import Path
 
 from .errors import InputError
 from .manifest import STEPS, Video, collect_videos, outputs_of
+from .progress import Quiet
 
-__all__ = ["run_batch", "BatchResult", "VideoResult", "process_video", "SUMMARY_NAME", "SUMMARY_COLUMNS"]
+__all__ = ["run_batch", "BatchResult", "VideoResult", "process_video", "remove_leftovers", "SUMMARY_NAME",
+           "SUMMARY_COLUMNS"]
 
 SUMMARY_NAME = "batch_summary.csv"
 SUMMARY_COLUMNS = ("video", "name", "success", "status", "frames", "tracked", "seconds", "outputs", "error")
@@ -82,10 +85,12 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}"  # a fault in faceanim: still one line, named as such
 
 
-def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool = False, target=None) -> VideoResult:
+def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool = False, target=None,
+                  report=None) -> VideoResult:
     """Do ``steps`` for one video into ``folder``: track it once, then write each output not already
     there (all of them with ``force``), together or none. Never raises for the video's own faults
-    (unreadable, no face, a bad option): they come back as a failed :class:`VideoResult`."""
+    (unreadable, no face, a bad option): they come back as a failed :class:`VideoResult`. ``report``:
+    a :class:`FrameCount` actor the tracked frames are told to (every :data:`REPORT_EVERY`), or None."""
     from . import pipeline
     from .arkit import blendshapes
     from .atomic import output_group
@@ -105,7 +110,7 @@ def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool =
         capture = None
         if todo.keys() - {"plot"}:  # tracked once, streamed through disk, for every step
             capture = captured_source(video.path, neutral=video.neutral, smoothing=video.smoothing,
-                                      folder=Path(folder))
+                                      folder=Path(folder), progress=None if report is None else _Reporter(report))
             frames, tracked = len(capture), float(capture.valid.mean())
         with output_group():  # this video's outputs appear together, or none of them
             stream = None
@@ -126,6 +131,78 @@ def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool =
                            error=_one_line(exc))
     return VideoResult(str(video.path), video.name, "done", frames, tracked, time.perf_counter() - start,
                        tuple(p.name for p in wanted.values()))
+
+
+REPORT_EVERY = 25  # frames a task tracks between two reports to the driver's progress bar
+
+
+class FrameCount:
+    """The frames tracked across a batch, as its tasks report them (made a Ray actor by
+    :func:`run_batch` only when progress bars are shown): :meth:`add` from the tasks, :meth:`take` from
+    the driver, which redraws its frames bar with what came in since it last asked."""
+
+    def __init__(self):
+        self._new = 0
+
+    def add(self, frames: int) -> None:
+        self._new += frames
+
+    def take(self) -> int:
+        new, self._new = self._new, 0
+        return new
+
+
+class _Reporter(Quiet):
+    """A task's frame loop, told to the driver's :class:`FrameCount` actor every :data:`REPORT_EVERY`
+    frames (a call that does not wait for an answer) and at its end; shows nothing itself."""
+
+    def __init__(self, count):
+        super().__init__()
+        self._count = count
+
+    def bar(self, iterable, *, total=None, desc: str, unit: str = "frame"):
+        return self._reported(iterable) if unit == "frame" else iterable
+
+    def _reported(self, iterable):
+        done = 0
+        try:
+            for item in iterable:
+                yield item
+                done += 1
+                if done == REPORT_EVERY:
+                    self._count.add.remote(done)
+                    done = 0
+        finally:
+            if done:
+                self._count.add.remote(done)
+
+
+def _temporary_names(names) -> re.Pattern:
+    """The hidden temporaries :mod:`faceanim.atomic` writes outputs ``names`` through
+    (``.NAME.XXXXXXXX.SUFFIX``, ``tempfile``'s 8 random characters), and faceanim's own folder probes
+    and frame stores (``.faceanim-probe-XXXXXXXX``, ``.faceanim-frames-XXXXXXXX``)."""
+    random = r"[a-z0-9_]{8}"
+    ours = [re.escape(f".{name}.") + random + re.escape(Path(name).suffix) for name in names]
+    ours += [rf"\.faceanim-(?:probe|frames)-{random}"]
+    return re.compile("|".join(f"(?:{p})" for p in ours))
+
+
+def remove_leftovers(folder, videos, steps) -> list[Path]:
+    """Remove from ``folder`` the hidden temporary files that a batch's workers, stopped mid-write
+    (Ctrl-C, a killed worker, a lost cluster node), left behind: only those named after an output of
+    ``videos`` and ``steps`` (or the summary) by :mod:`faceanim.atomic`'s pattern, never another file.
+    Returns what was removed. :func:`run_batch` calls it on start and after an interrupt."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return []
+    names = [p.name for v in videos for p in outputs_of(v, steps, folder).values()] + [SUMMARY_NAME]
+    pattern = _temporary_names(names)
+    removed = []
+    for path in folder.iterdir():
+        if path.name.startswith(".") and pattern.fullmatch(path.name) and path.is_file() and not path.is_symlink():
+            path.unlink(missing_ok=True)
+            removed.append(path)
+    return removed
 
 
 def _plot_faps(stream, path: Path, video: Video) -> None:
@@ -229,33 +306,50 @@ def run_batch(inputs, output, *, do=("encode",), target_mesh=None, workers: int 
         if target_mesh is not None and not Path(target_mesh).is_file():
             raise InputError(f"--target {target_mesh}: no such file")
         target = load_target(target_mesh, progress=shown)  # once, shared by every task through Ray's store
+    remove_leftovers(folder, videos, steps)  # a run stopped mid-write before this one left them
     joining = time.perf_counter()
     ray = _start_ray(workers, address)
     startup = time.perf_counter() - joining
+    frames_bar = None
     try:
         folder.mkdir(parents=True, exist_ok=True)
         task = ray.remote(num_cpus=1, max_retries=0)(process_video)
         shared = ray.put(target)
-        pending = {task.remote(v, steps, folder.absolute(), force=force, target=shared): k
+        count = ray.remote(num_cpus=0)(FrameCount).remote() if shown.shows_bars else None
+        pending = {task.remote(v, steps, folder.absolute(), force=force, target=shared, report=count): k
                    for k, v in enumerate(videos)}
         results: list[VideoResult | None] = [None] * len(videos)
 
         def finished():
             waiting = list(pending)
             while waiting:
-                done, waiting = ray.wait(waiting, num_returns=1)
-                results[pending[done[0]]] = ray.get(done[0])
-                yield results[pending[done[0]]]
+                done, waiting = ray.wait(waiting, num_returns=1, timeout=None if count is None else 0.5)
+                if count is not None:
+                    frames_bar.update(ray.get(count.take.remote()))
+                if done:
+                    results[pending[done[0]]] = ray.get(done[0])
+                    yield results[pending[done[0]]]
 
-        for _ in shown.bar(finished(), total=len(videos), desc=f"{'+'.join(steps)} on {len(videos)} videos",
-                           unit="video"):
+        videos_bar = shown.bar(finished(), total=len(videos), desc=f"{'+'.join(steps)} on {len(videos)} videos",
+                               unit="video")
+        if count is not None:
+            from tqdm import tqdm
+
+            frames_bar = tqdm(desc="frames tracked", unit="frame", file=shown.stream,
+                              bar_format="{desc}: {n_fmt} frames [{elapsed}, {rate_fmt}]")
+        for _ in videos_bar:
             pass
+        if count is not None:
+            frames_bar.update(ray.get(count.take.remote()))  # what came in with the last video
     except BaseException:
         for ref in list(locals().get("pending", {})):
             ray.cancel(ref, force=True)
         raise
     finally:
+        if frames_bar is not None:
+            frames_bar.close()
         ray.shutdown()
+        remove_leftovers(folder, videos, steps)  # what workers stopped mid-write (an interrupt) left
     result = BatchResult(folder, results, time.perf_counter() - start, startup)
     _write_summary(folder, result)
     return result

@@ -51,18 +51,27 @@ class Progress:
         """One line, ``faceanim: <what>...``, before a single step that takes a while."""
         print(f"faceanim: {what}...", file=self.stream, flush=True)
 
-    def bar(self, iterable: Iterable, *, total: int | None = None, desc: str, unit: str = "frame") -> Iterable:
-        """``iterable``, shown as it is consumed: a bar counting ``total`` of ``unit``, or one status line."""
+    @property
+    def shows_bars(self) -> bool:
+        """Whether :meth:`bar` draws tqdm bars (asked for, or on a terminal; tqdm installed): a job
+        can then draw its own next to them (``faceanim batch``'s frames across its workers)."""
         bars = self._bars
         if bars is None:
             bars = bool(getattr(self.stream, "isatty", lambda: False)())
-        if bars:
-            try:
-                from tqdm import tqdm
-            except ImportError:  # tqdm comes with the capture extra; without it, a line will do
-                pass
-            else:
-                return self._watched(tqdm(iterable, total=total, desc=desc, unit=unit, file=self.stream))
+        if not bars:
+            return False
+        try:
+            import tqdm  # noqa: F401 - tqdm comes with the capture extra; without it, a line will do
+        except ImportError:
+            return False
+        return True
+
+    def bar(self, iterable: Iterable, *, total: int | None = None, desc: str, unit: str = "frame") -> Iterable:
+        """``iterable``, shown as it is consumed: a bar counting ``total`` of ``unit``, or one status line."""
+        if self.shows_bars:
+            from tqdm import tqdm
+
+            return self._watched(tqdm(iterable, total=total, desc=desc, unit=unit, file=self.stream))
         self.status(f"{desc} ({total} {unit}s)" if total else desc)
         return self._watched(iterable)
 
@@ -96,6 +105,8 @@ class Interrupted(KeyboardInterrupt):
 class Quiet(Progress):
     """Shows nothing: what a job uses when it is given no :class:`Progress` (``interrupts``: see
     :meth:`Progress._watched`)."""
+
+    shows_bars = False
 
     def status(self, what: str) -> None:
         pass
