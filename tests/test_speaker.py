@@ -82,7 +82,7 @@ def test_the_forward_map_measures_faps_as_motion_to_faps_does():
     down = theirs.values[:, opening] >= 0  # motion_to_faps swings the jaw only for a chin at or below rest
     assert down.sum() > 100
     np.testing.assert_allclose(ours.values[down][:, j], theirs.values[down][:, j], atol=1e-8)
-    assert set(j + 1) == set(range(3, 19)) | {39, 40, 41, 42} | set(range(51, 61))
+    assert set(j + 1) == set(range(3, 19)) | {39, 40, 41, 42} | set(range(51, 65))  # 61-64: the nose
     assert ours.mask[:, j].all() and not np.delete(ours.mask, j, axis=1).any()
 
 
@@ -177,11 +177,114 @@ def test_frames_with_too_few_faps_keep_what_arrived_and_other_faps_pass_through(
     assert np.isnan(model.to_parameters(stream)[[1, 2]]).all()
 
 
+def smooth_synthetic(frames=600, seed=0, persistence=0.95):
+    """``synthetic``'s face whose six parameters follow a first-order autoregression of unit variance:
+    the motion, and a model built on its first 400 frames."""
+    motion, vectors, _ = synthetic(frames=frames, count=6, seed=seed)
+    rng = np.random.default_rng(seed + 10)
+    a = np.zeros((frames, 6))
+    a[0] = rng.normal(size=6)
+    for t in range(1, frames):
+        a[t] = persistence * a[t - 1] + np.sqrt(1 - persistence**2) * rng.normal(size=6)
+    index = motion.index(mobile_names(motion))
+    d = np.zeros_like(motion.displacements)
+    d[:, index] = np.einsum("tk,kpc->tpc", a, vectors)
+    smooth = Motion(motion.names, motion.neutral, d, motion.pose, motion.fps, motion.fapu)
+    return smooth, build_model(smooth, parameters=6, frames=np.arange(400))
+
+
+def test_the_persistence_is_each_parameters_lag_one_correlation_over_consecutive_frames():
+    motion, model = smooth_synthetic(persistence=0.95)
+    assert model.persistence.shape == (6,) and np.all(np.abs(model.persistence - 0.95) < 0.05)
+    every_other = build_model(motion, parameters=6, frames=np.arange(0, 400, 2))  # no two frames follow
+    np.testing.assert_array_equal(every_other.persistence, 0.0)
+
+
+@pytest.mark.parametrize("sent", [None, EIGHT])
+@pytest.mark.parametrize("quant", [None, 256.0])
+def test_the_temporal_prior_brings_a_noisy_smooth_stream_closer_than_frame_by_frame(sent, quant):
+    """Noise of the size each weighing assumes (cm: the ridge's variance; a quantiser: a rounding error,
+    uniform over a step) on a stream whose parameters persist from frame to frame as the model measured.
+    The past helps where a frame's own FAPs leave the parameters uncertain beside their change from one
+    frame to the next: coarse steps, or few FAPs (at a ridge of 1e-3 cm^2 and all FAPs it gains ~2%)."""
+    from dataclasses import replace
+
+    motion, model = smooth_synthetic()
+    model = replace(model, ridge=0.03)
+    truth = model.to_faps(model.fit_points(motion.displacements[400:][:, motion.index(model.names)]))
+    j = model.fap_columns
+    rng = np.random.default_rng(9)
+    values = truth.values.copy()
+    if quant is None:
+        values[:, j] += rng.normal(size=(len(truth), len(j))) * np.sqrt(model.ridge) / FAPU.scale()[j]
+    else:
+        values[:, j] += rng.uniform(-0.5, 0.5, size=(len(truth), len(j))) * TABLE.quant_step[j] * quant
+    received = FapStream(values, truth.mask, truth.fps)
+    received = received if sent is None else subset(received, sent)
+
+    def error(stream):
+        return np.sqrt(((stream.values[:, j] - truth.values[:, j]) ** 2).mean())
+
+    alone = error(model.regularise(received, quant=quant))
+    together = error(model.regularise(received, quant=quant, temporal=True))
+    assert together < 0.9 * alone
+
+
+def test_the_temporal_prior_is_causal_and_the_frame_by_frame_solve_without_persistence():
+    motion, model = smooth_synthetic()
+    truth = noisy(model.to_faps(np.random.default_rng(7).normal(size=(60, 6))), sigma=5.0)
+    a = model.to_parameters(truth, temporal=True)
+    later = FapStream(truth.values.copy(), truth.mask, truth.fps)
+    later.values[30:] += 40.0  # what comes after frame 29 does not change frames up to 29
+    np.testing.assert_array_equal(model.to_parameters(later, temporal=True)[:30], a[:30])
+    assert not np.allclose(model.to_parameters(later, temporal=True)[30:], a[30:])
+    from dataclasses import replace
+
+    forgetful = replace(model, persistence=np.zeros(6))
+    for quant in (None, 2.0):
+        np.testing.assert_allclose(forgetful.to_parameters(truth, quant=quant, temporal=True),
+                                   model.to_parameters(truth, quant=quant), atol=1e-10)
+
+
+def test_a_still_noise_free_stream_through_the_temporal_prior():
+    """Exact with a ridge of 0 (FAPs taken as exact); with the ridge, it settles nearer the truth than
+    the frame-by-frame solve (the past's evidence outweighs the prior), at the filter's fixed point."""
+    from dataclasses import replace
+
+    motion, model = smooth_synthetic()
+    true = np.array([0.5, -1.0, 0.3, 0.8, -0.2, 1.1])
+    still = model.to_faps(np.tile(true, (300, 1)))
+    for stream in (still, subset(still, EIGHT)):
+        exact = replace(model, ridge=0.0)
+        np.testing.assert_allclose(exact.to_parameters(stream, temporal=True), np.tile(true, (300, 1)), atol=1e-9)
+        settled = model.to_parameters(stream, temporal=True)[-1]
+        alone = model.to_parameters(stream)[-1]
+        assert np.linalg.norm(settled - true) < np.linalg.norm(alone - true)
+        received = stream.mask[0, model.fap_columns]
+        A, B = model.filter_gain(received)
+        fixed = np.linalg.solve(np.eye(6) - A, B @ (stream.values[0, model.fap_columns][received]
+                                                    - model.fap_offset[received]))
+        np.testing.assert_allclose(settled, fixed, atol=1e-9)
+
+
+def test_the_temporal_prior_starts_afresh_after_a_frame_with_too_few_faps():
+    motion, model = smooth_synthetic()
+    truth = noisy(model.to_faps(np.random.default_rng(8).normal(size=(40, 6))), sigma=5.0)
+    mask = truth.mask.copy()
+    mask[20] = False  # a frame without a face
+    cut = FapStream(truth.values, mask, truth.fps)
+    a = model.to_parameters(cut, temporal=True)
+    assert np.isnan(a[20]).all() and np.isfinite(a[[19, 21]]).all()
+    tail = FapStream(truth.values[21:], truth.mask[21:], truth.fps)
+    np.testing.assert_allclose(a[21:], model.to_parameters(tail, temporal=True), atol=1e-12)
+    np.testing.assert_allclose(a[21], model.to_parameters(tail)[0], atol=1e-12)  # its own solve, no past
+
+
 def test_a_subset_too_small_on_every_frame_is_refused_in_one_line():
     motion, _, _ = synthetic(count=6)
     model = build_model(motion, parameters=6)
     truth = model.to_faps(np.zeros((5, 6)))
-    with pytest.raises(InputError, match=r"carries at most 5 of the speaker model's 30 FAPs on a frame; its 6 "
+    with pytest.raises(InputError, match=r"carries at most 5 of the speaker model's 34 FAPs on a frame; its 6 "
                                          r"parameters need at least 6") as caught:
         model.regularise(subset(truth, [3, 14, 16, 17, 51]))
     assert "\n" not in str(caught.value)
@@ -200,6 +303,25 @@ def test_the_model_file_round_trips(tmp_path):
         np.testing.assert_array_equal(getattr(back, field), getattr(model, field))
     assert back.triangles.max() < len(back.names) + len(back.static_names)
     np.testing.assert_array_equal(back.fap_matrix, model.fap_matrix)
+    np.testing.assert_array_equal(back.persistence, model.persistence)
+
+
+def test_a_version_1_file_is_read_without_a_temporal_prior_which_is_then_refused(tmp_path):
+    """Version 2 added the temporal prior's persistence; a version 1 file (without it) still decodes
+    frame by frame as before, and asking it for the temporal prior is refused in one line."""
+    path = rewritten(tmp_path, version=np.array(1), persistence=None)
+    old = read_speaker(path)
+    assert old.persistence is None
+    truth = old.to_faps(np.random.default_rng(6).normal(size=(5, 3)))
+    np.testing.assert_allclose(old.regularise(truth).values, read_speaker(tmp_path / "good.npz").regularise(
+        truth).values)
+    with pytest.raises(InputError, match="has no temporal prior \\(a version 1 file\\): build it again") as caught:
+        old.regularise(truth, temporal=True)
+    assert "\n" not in str(caught.value)
+    write_speaker(tmp_path / "again.npz", old)  # written back as what it is: version 1
+    with np.load(tmp_path / "again.npz") as archive:
+        assert int(archive["version"]) == 1 and "persistence" not in archive.files
+    assert read_speaker(tmp_path / "again.npz").persistence is None
 
 
 def rewritten(tmp_path, **changes):
@@ -215,7 +337,9 @@ def rewritten(tmp_path, **changes):
 
 
 @pytest.mark.parametrize("changes, match", [
-    ({"version": np.array(7)}, "is a speaker model of version 7; this faceanim reads version 1"),
+    ({"version": np.array(7)}, "is a speaker model of version 7; this faceanim reads versions 1 to 2"),
+    ({"persistence": None}, "lacks the speaker model's persistence"),
+    ({"persistence": np.ones(3)}, "persistence must hold correlations from 0 to below 1"),
     ({"basis": np.zeros((3, 5, 3))}, r"basis must have shape \(K, \d+, 3\), got \(3, 5, 3\)"),
     ({"neutral": np.zeros((4, 3))}, r"neutral must have shape \(\d+, 3\), got \(4, 3\)"),
     ({"ranges": np.zeros((2, 2))}, r"ranges must have shape \(3, 2\)"),
@@ -257,7 +381,7 @@ def built(tmp_path_factory):
 
 def test_speaker_build_and_analyse_on_a_real_clip(built, capsys):
     model = read_speaker(built / "man.npz")
-    assert model.parameter_count == 6 and model.method == "guided" and len(model.fap_columns) == 30
+    assert model.parameter_count == 6 and model.method == "guided" and len(model.fap_columns) == 34
     assert main(["speaker", "analyse", str(VIDEO), "--model", str(built / "man.npz"), "-o", str(built / "man.fap"),
                  "--params-csv", str(built / "p.csv")]) == 0
     assert "wrote" in capsys.readouterr().out
@@ -313,7 +437,7 @@ def test_decode_refuses_a_bad_speaker_file_and_a_too_small_subset(built, capsys,
 
     write_fap(tmp_path / "few.fap", subset(model.to_faps(np.zeros((2, 6))), [3, 14, 16]))
     for speaker, match in ((tmp_path / "bad.npz", "is not a speaker model"),
-                           (built / "man.npz", "carries at most 3 of the speaker model's 30 FAPs")):
+                           (built / "man.npz", "carries at most 3 of the speaker model's 34 FAPs")):
         code = main(["decode", str(tmp_path / "few.fap"), "-o", str(tmp_path / "o.glb"), "--speaker", str(speaker)])
         err = capsys.readouterr().err
         assert code == 2 and match in err and err.count("\n") == 1

@@ -119,11 +119,14 @@ def fap_compress(source, output, *, quant: float = 1.0, faps=None) -> Compressio
     return CompressionResult(size=len(data), frames=len(stream), fps=stream.fps, faps=sent, quant=quant, psnr=psnr)
 
 
-def fap_decompress(source, output, *, speaker=None) -> FapStream:
+def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None) -> FapStream:
     """``faceanim fap-decompress``: decode the ``.fba`` at ``source`` into the ``.fap`` at ``output``;
     with ``speaker`` (a model file from ``faceanim speaker build``), the decoded FAPs are interpreted
     through it first (:meth:`~faceanim.speaker.SpeakerModel.regularise`: the model's FAPs regenerated
     from the parameters that best explain those received, filled in where they were not sent).
+    ``temporal``: through the model's temporal prior (causal: each frame with those before it); by
+    default wherever the model has one (files from version 2 on), which
+    ``benchmarks/fap_coding.py`` measures as at least as close at every rate; ``False``: frame by frame.
 
     Returns the stream written (values as the ``.fap`` holds them before rounding to whole units).
     """
@@ -139,7 +142,9 @@ def fap_decompress(source, output, *, speaker=None) -> FapStream:
         model = read_speaker(speaker)
     stream = read_fba(source)
     if model is not None:  # each FAP weighed by its quantiser step: the coding error is what is filtered
-        stream = model.regularise(stream, quant=fba_quant(source))
+        if temporal is None:
+            temporal = model.persistence is not None
+        stream = model.regularise(stream, quant=fba_quant(source), temporal=temporal)
     if round(stream.fps) < 1:
         raise InputError(f"{source}: {stream.fps:g} fps cannot be written as a .fap (whole frame rates from 1)")
     write_fap(output, stream)

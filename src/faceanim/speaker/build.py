@@ -31,6 +31,7 @@ __all__ = ["build_model", "mobile_names", "GUIDED", "METHODS"]
 
 METHODS = ("guided", "pca")
 CHEEKS = ("5.1", "5.2", "5.3", "5.4")
+NOSE = ("9.1", "9.2", "9.3")  # the nostrils and the tip: FAPs 61-64, which the upper lip and cheeks pull
 
 _X, _Y, _Z = 0, 1, 2
 _UPPER_LIP = ("8.1", "8.5", "8.6", "2.2", "2.6", "2.7")
@@ -55,11 +56,12 @@ GUIDED: tuple[tuple[str, tuple[tuple[str, int, int], ...]], ...] = (
 
 def mobile_names(motion: Motion) -> tuple[str, ...]:
     """The points a speaker's model moves: every point of ``motion`` below the bottom of the nose (9.15)
-    at rest (lips, chin, jaw line, lower cheeks) and the cheek feature points 5.1-5.4."""
+    at rest (lips, chin, jaw line, lower cheeks), the cheek feature points 5.1-5.4 and the nose's
+    9.1-9.3 (nostrils and tip)."""
     if "9.15" not in motion.names:
         raise ValueError("the motion needs the bottom of the nose (feature point 9.15) to tell the mobile points")
     below = motion.neutral[:, 1] < motion.neutral[motion.names.index("9.15"), 1]
-    return tuple(n for n, low in zip(motion.names, below, strict=True) if low or n in CHEEKS)
+    return tuple(n for n, low in zip(motion.names, below, strict=True) if low or n in CHEEKS or n in NOSE)
 
 
 def _pca(residual: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
@@ -153,7 +155,18 @@ def build_model(motion: Motion, *, parameters: int = 6, frames=None, method: str
     seen = model.fit_points(positions - neutral)
     return SpeakerModel(names, neutral, rest, model.basis, labels, static, static_points, triangles, motion.fapu,
                         np.stack([seen.min(axis=0), seen.max(axis=0)], axis=1), motion.fps, method=method,
-                        ridge=ridge)
+                        ridge=ridge, persistence=persistence(seen, np.flatnonzero(chosen)))
+
+
+def persistence(parameters: np.ndarray, frames: np.ndarray) -> np.ndarray:
+    """(K,) each unit-variance parameter's correlation with itself one frame earlier, ``1 - E[(a_t -
+    a_(t-1))^2] / 2`` over the pairs of consecutive frames among ``frames`` (the frame numbers of
+    ``parameters (N, K)``' rows), kept within 0 and 0.999; 0 where no two frames follow each other."""
+    follows = np.flatnonzero(np.diff(frames) == 1)
+    if not len(follows):
+        return np.zeros(parameters.shape[1])
+    change = parameters[follows + 1] - parameters[follows]
+    return np.clip(1 - (change**2).mean(axis=0) / 2, 0.0, 0.999)
 
 
 def reconstruction_error(model: SpeakerModel, motion: Motion, frames=None) -> np.ndarray:

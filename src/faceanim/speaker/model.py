@@ -7,6 +7,13 @@ platform, Elisei, Odisio and Bailly 2001): it finds the parameters that best exp
 arrived in each frame, in the least-squares sense, and regenerates every FAP the model ties to a
 point. The FAPs that were not sent are filled in, and much of the coding noise goes.
 
+With a temporal prior (``temporal=True``), the interpretation is a causal Kalman filter over the
+frames (low delay: a frame's parameters depend on it and the frames before it, never after). Each
+parameter is a first-order autoregression with the persistence (lag-one correlation) that the model
+measured on the frames it was built from, :attr:`SpeakerModel.persistence`, and unit variance, the
+prior the frame-by-frame solve's ridge already stands for: with persistence 0 the filter is that
+solve. Each frame then borrows what the frames before it saw, which removes more of the coding noise.
+
 The forward map is exact and linear. Parameters give points; points give FAPs as
 :func:`faceanim.motion.motion_to_faps` measures them (a point's displacement along the FAP's direction,
 in its FAPU; the points the jaw carries after the jaw's swing, :mod:`faceanim.mpeg4.jaw`), with one
@@ -21,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.linalg import solve_discrete_are
 
 from ..errors import InputError
 from ..mpeg4 import FAP_COUNT, Fapu, fap_table
@@ -115,6 +123,10 @@ class SpeakerModel:
         How the displacement vectors were found (``"pca"`` or ``"guided"``).
     ridge : float
         The interpretation's ridge, cm^2 (see :data:`DEFAULT_RIDGE`).
+    persistence : (K,) float64 or None
+        Each parameter's correlation with itself one frame earlier over the frames the model was built
+        on, from 0 to below 1: the temporal prior's autoregression (``temporal=True``). None: no
+        temporal prior (a model file of version 1).
     """
 
     names: tuple[str, ...]
@@ -130,6 +142,7 @@ class SpeakerModel:
     fps: float
     method: str = "guided"
     ridge: float = DEFAULT_RIDGE
+    persistence: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -157,12 +170,17 @@ class SpeakerModel:
             raise ValueError(f"method must be pca or guided, got {self.method!r}")
         if not (np.isfinite(self.ridge) and self.ridge >= 0):
             raise ValueError(f"ridge must be a number from 0, got {self.ridge!r}")
+        persistence = (None if self.persistence is None
+                       else as_array(self.persistence, "persistence", shape=(K,), frozen=True))
+        if persistence is not None and not ((persistence >= 0) & (persistence < 1)).all():
+            raise ValueError("persistence must hold correlations from 0 to below 1")
         if np.linalg.matrix_rank(basis.reshape(K, -1)) < K:
             raise ValueError(f"basis must hold {K} independent displacement vectors")
         for name, value in (("names", names), ("neutral", neutral), ("rest", rest), ("basis", basis),
                             ("parameter_names", tuple(self.parameter_names)), ("static_names", static),
                             ("static_points", points), ("triangles", triangles), ("ranges", ranges),
-                            ("fps", float(self.fps)), ("ridge", float(self.ridge))):
+                            ("fps", float(self.fps)), ("ridge", float(self.ridge)),
+                            ("persistence", persistence)):
             object.__setattr__(self, name, value)
         if len(self.fap_columns) < K:
             raise ValueError(f"the mobile points observe {len(self.fap_columns)} FAPs, fewer than the {K} parameters")
@@ -253,14 +271,50 @@ class SpeakerModel:
         key = ("solver", received.tobytes(), None if quant is None else float(quant))
         return self._cached(key, lambda: self._solver(received, quant))
 
+    def _weights(self, quant: float | None) -> tuple[np.ndarray, float]:
+        """(J,) the weight of each FAP's error and the ridge (see :meth:`solver`)."""
+        columns, _, _, weight = self._cached("forward", self._forward)
+        if quant is None:
+            return weight, self.ridge
+        return 1.0 / (fap_table().quant_step[columns] * quant), 1.0 / 12.0
+
     def _solver(self, received: np.ndarray, quant: float | None) -> np.ndarray:
-        columns, G, _, weight = self._cached("forward", self._forward)
-        ridge = self.ridge
-        if quant is not None:
-            weight, ridge = 1.0 / (fap_table().quant_step[columns] * quant), 1.0 / 12.0
+        G = self.fap_matrix
+        weight, ridge = self._weights(quant)
         A = weight[received, None] * G[received]
         normal = A.T @ A + ridge * np.eye(self.parameter_count)
         return np.linalg.solve(normal, A.T * weight[received])
+
+    def filter_gain(self, received, *, quant: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``(A (K, K), B (K, n))`` of the temporal prior's steady-state Kalman filter for the FAPs
+        flagged in ``received (J,) bool``: ``a_t = A @ a_(t-1) + B @ (faps_t - offset)``. Kept per subset.
+
+        The state is the parameters, ``a_t = R a_(t-1) + w_t`` with ``R`` the diagonal of
+        :attr:`persistence` and ``w_t`` of variance ``1 - R^2`` (parameters of unit variance); a
+        received FAP carries an error of variance ``ridge / weight^2`` (weights and ridge as in
+        :meth:`solver`, whose estimate is the filter's at persistence 0 and on a frame with no past).
+        With a ridge of 0 (cm weights) the FAPs are taken as exact: ``A = 0`` and ``B`` the solver."""
+        if self.persistence is None:
+            raise InputError("this speaker model has no temporal prior (a version 1 file): build it again with "
+                             "faceanim speaker build")
+        received = np.asarray(received, dtype=bool)
+        if quant is not None and not (np.isfinite(quant) and quant > 0):
+            raise ValueError(f"quant must be a positive number, got {quant!r}")
+        key = ("filter", received.tobytes(), None if quant is None else float(quant))
+        return self._cached(key, lambda: self._filter_gain(received, quant))
+
+    def _filter_gain(self, received: np.ndarray, quant: float | None) -> tuple[np.ndarray, np.ndarray]:
+        weight, ridge = self._weights(quant)
+        K = self.parameter_count
+        if ridge == 0:
+            return np.zeros((K, K)), self._solver(received, quant)
+        H = self.fap_matrix[received]
+        noise = np.diag(ridge / weight[received] ** 2)
+        F, Q = np.diag(self.persistence), np.diag(1 - self.persistence**2)
+        # the predicted covariance at the steady state (the filter's Riccati equation, dual of control's)
+        P = solve_discrete_are(F.T, H.T, Q, noise)
+        gain = np.linalg.solve(H @ P @ H.T + noise, H @ P).T  # (K, n), P symmetric
+        return (np.eye(K) - gain @ H) @ F, gain
 
     def _received(self, stream: FapStream) -> np.ndarray:
         if not isinstance(stream, FapStream):
@@ -297,30 +351,67 @@ class SpeakerModel:
             if len(group):
                 yield frames[group], received[frames[group[0]]]
 
-    def to_parameters(self, stream: FapStream, *, quant: float | None = None) -> np.ndarray:
+    def to_parameters(self, stream: FapStream, *, quant: float | None = None, temporal: bool = False) -> np.ndarray:
         """(T, K) the parameters that best explain each frame's FAPs (see :meth:`solver`, and there for
-        ``quant``); NaN on frames carrying fewer of the model's FAPs than it has parameters.
+        ``quant``); NaN on frames carrying fewer of the model's FAPs than it has parameters. With
+        ``temporal``, each frame's FAPs and those of the frames before it, through the temporal prior
+        (:meth:`filter_gain`); a frame after one with too few FAPs starts afresh (its own solve).
 
         Raises
         ------
         InputError
-            No frame carries that many (the subset cannot determine the parameters).
+            No frame carries that many (the subset cannot determine the parameters); ``temporal`` on
+            a model without a temporal prior.
         """
         received = self._received(stream)
         enough = self._check_enough(stream, received)
+        if temporal:
+            return self._filtered(stream, received, enough, quant)
         a = np.full((len(stream), self.parameter_count), np.nan)
         values = stream.values[:, self.fap_columns] - self.fap_offset
         for frames, mask in self._groups(received, enough):
             a[frames] = values[np.ix_(frames, np.flatnonzero(mask))] @ self.solver(mask, quant=quant).T
         return a
 
-    def regularise(self, stream: FapStream, *, quant: float | None = None) -> FapStream:
+    def _filtered(self, stream: FapStream, received: np.ndarray, enough: np.ndarray, quant: float | None
+                  ) -> np.ndarray:
+        """(T, K) the temporal prior's causal estimate, run by run of frames carrying the same FAPs."""
+        if self.persistence is None:
+            self.filter_gain(received[0], quant=quant)  # raises, naming the cause
+        a = np.full((len(stream), self.parameter_count), np.nan)
+        values = stream.values[:, self.fap_columns] - self.fap_offset
+        change = np.ones(len(stream), dtype=bool)
+        change[1:] = (received[1:] != received[:-1]).any(axis=1) | (enough[1:] != enough[:-1])
+        starts = np.flatnonzero(change)
+        state = None
+        for start, end in zip(starts, np.append(starts[1:], len(stream)), strict=True):
+            if not enough[start]:
+                state = None
+                continue
+            mask = received[start]
+            y = values[start:end][:, mask]
+            if state is None:  # no past: the frame's own solve
+                state = self.solver(mask, quant=quant) @ y[0]
+                a[start] = state
+                first = 1
+            else:
+                first = 0
+            A, B = self.filter_gain(mask, quant=quant)
+            drive = y[first:] @ B.T
+            out = a[start + first:end]
+            for t in range(len(drive)):
+                state = A @ state + drive[t]
+                out[t] = state
+        return a
+
+    def regularise(self, stream: FapStream, *, quant: float | None = None, temporal: bool = False) -> FapStream:
         """``stream`` as the model explains it: on each frame carrying at least as many of the model's
         FAPs as it has parameters, every one of the model's FAPs is regenerated from the parameters
         that best explain those received (filled in where absent, denoised where present). Other FAPs
         (eyes, brows, head) pass through as they arrived, and so do frames carrying too few of the
         model's FAPs (a frame without a face carries none). ``quant``: the quantiser scale of a coded
         stream, which weighs each FAP by its step (see :meth:`solver`); default: weighed in cm.
+        ``temporal``: the parameters through the temporal prior (causal, see :meth:`to_parameters`).
 
         Raises
         ------
@@ -331,8 +422,14 @@ class SpeakerModel:
         received = self._received(stream)
         enough = self._check_enough(stream, received)
         values, mask = stream.values.copy(), stream.mask.copy()
-        measured = stream.values[:, self.fap_columns] - self.fap_offset
         G = self.fap_matrix
+        if temporal:
+            a = self._filtered(stream, received, enough, quant)
+            values[np.ix_(enough, self.fap_columns)] = a[enough] @ G.T + self.fap_offset
+            mask[np.ix_(enough, self.fap_columns)] = True
+            return FapStream(values, mask, stream.fps, frame_numbers=stream.frame_numbers, visemes=stream.visemes,
+                             expressions=stream.expressions, name=stream.name)
+        measured = stream.values[:, self.fap_columns] - self.fap_offset
         for frames, subset in self._groups(received, enough):
             key = ("regularise", subset.tobytes(), None if quant is None else float(quant))
             operator = self._cached(key, lambda s=subset: G @ self.solver(s, quant=quant))

@@ -1,10 +1,14 @@
 """The speaker model file (``.npz``, versioned): written complete or not at all, read with one-line errors.
 
-Arrays (no pickled objects): ``version`` (1), ``names (P,)``, ``neutral (P, 3)``, ``rest (P, 3)``,
+Arrays (no pickled objects): ``version`` (2), ``names (P,)``, ``neutral (P, 3)``, ``rest (P, 3)``,
 ``basis (K, P, 3)``, ``parameter_names (K,)``, ``static_names (S,)``, ``static_points (S, 3)``,
 ``triangles (F, 3)`` (into the mobile then the static points), ``fapu (5,)`` (IRISD0, ES0, ENS0,
-MNS0, MW0), ``ranges (K, 2)``, ``fps``, ``method``, ``ridge``. Lengths in centimetres, head frame,
-MPEG-4 axes (+X the face's left, +Y up, +Z out of the face).
+MNS0, MW0), ``ranges (K, 2)``, ``fps``, ``method``, ``ridge``, ``persistence (K,)`` (the temporal
+prior's; new in version 2). Lengths in centimetres, head frame, MPEG-4 axes (+X the face's
+left, +Y up, +Z out of the face).
+
+Version 1 files (without ``persistence``) are still read: the model interprets streams frame by frame as
+before, and asking it for the temporal prior is refused in one line. Other versions are refused.
 """
 
 from __future__ import annotations
@@ -21,7 +25,8 @@ from .model import SpeakerModel
 
 __all__ = ["read_speaker", "write_speaker", "SPEAKER_VERSION"]
 
-SPEAKER_VERSION = 1
+SPEAKER_VERSION = 2
+_READABLE = (1, 2)
 _FAPU = ("irisd0", "es0", "ens0", "mns0", "mw0")
 _ARRAYS = ("names", "neutral", "rest", "basis", "parameter_names", "static_names", "static_points", "triangles",
            "fapu", "ranges", "fps", "method", "ridge")
@@ -38,6 +43,10 @@ def write_speaker(path, model: SpeakerModel) -> Path:
         "triangles": model.triangles, "fapu": np.array([getattr(model.fapu, k) for k in _FAPU]),
         "ranges": model.ranges, "fps": np.array(model.fps), "method": np.array(model.method),
         "ridge": np.array(model.ridge)}
+    if model.persistence is not None:
+        arrays["persistence"] = model.persistence
+    else:  # a model without a temporal prior is what version 1 held
+        arrays["version"] = np.array(1)
     with atomic_output(path) as tmp, open(tmp, "wb") as handle:
         np.savez_compressed(handle, **arrays)
     return path
@@ -84,17 +93,19 @@ def read_speaker(path) -> SpeakerModel:
         version = int(_scalar(data["version"], "version", path, "iu"))
     except (TypeError, ValueError):
         raise FileFormatError(path, "is not a speaker model (its version is no whole number)") from None
-    if version != SPEAKER_VERSION:
-        raise FileFormatError(path, f"is a speaker model of version {version}; this faceanim reads version "
-                                    f"{SPEAKER_VERSION} (build it again with faceanim speaker build)")
-    missing = [key for key in _ARRAYS if key not in data]
+    if version not in _READABLE:
+        raise FileFormatError(path, f"is a speaker model of version {version}; this faceanim reads versions "
+                                    f"{_READABLE[0]} to {SPEAKER_VERSION} (build it again with faceanim speaker "
+                                    "build)")
+    missing = [key for key in _ARRAYS + (("persistence",) if version >= 2 else ()) if key not in data]
     if missing:
         raise FileFormatError(path, f"lacks the speaker model's {', '.join(missing)}")
     try:
         fapu = data["fapu"]
         if fapu.shape != (5,) or fapu.dtype.kind != "f":
             raise FileFormatError(path, f"fapu must hold 5 distances, got {fapu.dtype} {fapu.shape}")
-        for key in ("neutral", "rest", "basis", "static_points", "ranges", "triangles"):
+        for key in ("neutral", "rest", "basis", "static_points", "ranges", "triangles") + (
+                ("persistence",) if version >= 2 else ()):
             if data[key].dtype.kind not in ("iu" if key == "triangles" else "f"):
                 raise FileFormatError(path, f"{key} must be numbers, got {data[key].dtype}")
         return SpeakerModel(
@@ -103,7 +114,7 @@ def read_speaker(path) -> SpeakerModel:
             _strings(data["static_names"], "static_names", path), data["static_points"], data["triangles"],
             Fapu(*(float(v) for v in fapu)), data["ranges"], float(_scalar(data["fps"], "fps", path, "fiu")),
             method=str(_scalar(data["method"], "method", path, "U")),
-            ridge=float(_scalar(data["ridge"], "ridge", path, "fiu")))
+            ridge=float(_scalar(data["ridge"], "ridge", path, "fiu")), persistence=data.get("persistence"))
     except (ValueError, TypeError) as exc:
         if isinstance(exc, FileFormatError):
             raise
