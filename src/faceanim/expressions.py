@@ -154,7 +154,11 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
     :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None); ``force`` replaces an
     ``.obj``'s material and texture even where faceanim did not write them. Returns ``(animation, recipe
     made)``: the target's :class:`~faceanim.geometry.animation.Animation` (one frame for a still;
-    streamed, so its frames are made again when read)."""
+    streamed, so its frames are made again when read). With ``frames`` and a ``target_mesh`` ``.glb``
+    whose morph targets carry AU or ARKit names, the rig's own sliders are animated instead
+    (:func:`faceanim.driving.express_rig`: the recipe's intensities times the onset-apex-offset
+    envelope, through :data:`~faceanim.rig.drive.FACS_ARKIT` for ARKit names) and a
+    :class:`~faceanim.driving.DrivenRig` stands in for the animation."""
     from .export import MorphSet, morphs_from_animation, write_glb
     from .geometry import write_mesh
     from .geometry.animation import Animation, spilled
@@ -181,6 +185,11 @@ def express(output, *, au=None, emotion=None, intensity=None, target_mesh=None, 
     if frames is not None and output.suffix.lower() == ".obj":
         raise InputError(f"{output}: an OBJ holds one still face; write .glb or .fap for --frames")
     recipe = expression_recipe(au=au, emotion=emotion, intensity=intensity)
+    if frames is not None and output.suffix.lower() == ".glb" and target is None:
+        from .driving import express_rig, is_named_rig
+
+        if is_named_rig(target_mesh):  # a rig's own AU / ARKit sliders are driven, not vertex motion baked
+            return express_rig(output, recipe, rig=target_mesh, frames=int(frames), fps=float(fps)), recipe
     shown = as_progress(progress)
     target = target or load_target(target_mesh, points=points, fdp=fdp, progress=shown)
     if output.suffix.lower() == ".glb":  # refused now, not after the muscles' work, if of no human size

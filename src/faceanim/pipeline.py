@@ -345,6 +345,27 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     return animation
 
 
+def _named_rig_route(source, target_mesh, target, preview, obj_sequence, head_motion, via) -> bool:
+    """Whether ``animate`` drives a named rig (a CSV of weights, or a ``--target`` ``.glb`` whose morph
+    targets carry ARKit or AU names; see :mod:`faceanim.driving`), refusing at once what that route
+    does not do."""
+    from .driving import is_named_rig
+    from .rig.drive import EXPECTED_NAMES
+
+    weights = Path(source).suffix.lower() == ".csv"
+    if not weights and (target is not None or not is_named_rig(target_mesh)):
+        return False
+    if target_mesh is None:
+        raise InputError(f"{source}: a CSV of weights drives a rig: give --target a .glb whose morph targets carry "
+                         f"{EXPECTED_NAMES}")
+    for given, option in ((preview, "--preview"), (obj_sequence, "--obj-sequence"), (head_motion, "--head-motion"),
+                          (via != "motion", "--via faps")):
+        if given:
+            raise InputError(f"{target_mesh}: a named rig is animated through its own morph weights; {option} is "
+                             "not available with it")
+    return True
+
+
 def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=None, fap=None, head_motion=False,
             progress=None, neutral=None, target=None, obj_sequence=None, csv=None, via="motion", smoothing=True,
             parts=None, capture=None):
@@ -358,7 +379,11 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None).
     ``capture``, the :class:`~faceanim.capture.stream.Capture` of ``video`` already made, stands in
     for tracking it again. Returns ``(animation, stream)``: the streamed
-    :class:`~faceanim.geometry.animation.Animation` (reading its frames deforms them again) and the FAPs."""
+    :class:`~faceanim.geometry.animation.Animation` (reading its frames deforms them again) and the FAPs.
+
+    A ``target_mesh`` ``.glb`` whose morph targets carry ARKit or FACS AU names is a named rig: its own
+    targets are animated instead (:func:`faceanim.driving.animate_rig`; ``video`` may then also be a Live
+    Link Face or AU CSV), and ``(DrivenRig, stream or None)`` is returned."""
     from .capture.overlay import overlay_frames
     from .motion import clip_to_range, motion_to_faps
     from .mpeg4.fapfile import write_fap
@@ -368,6 +393,12 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
 
     if via not in ("motion", "faps"):
         raise InputError(f"via must be motion or faps, got {via!r}")
+    rig_route = _named_rig_route(video, target_mesh, target, preview, obj_sequence, head_motion, via)
+    if rig_route:
+        from .driving import animate_rig
+
+        return animate_rig(video, output, rig=target_mesh, points=points, fdp=fdp, neutral=neutral,
+                           smoothing=smoothing, progress=progress, fap=fap, csv_path=csv, capture=capture)
     output = Path(output)
     check_outputs({"-o": (output, ".glb"), "--fap": (fap, ".fap"), "--preview": (preview, ".mp4"),
                    "--csv": (csv, ".csv"), "--obj-sequence": (obj_sequence, SEQUENCE_FOLDER)},
