@@ -185,28 +185,29 @@ class CloneRenderer:
         points = self.points(a)
         weights = self.appearance.weights(points)
         data = np.c_[self.clip(points, rigid, camera), self.appearance.uv].astype("f4")
-        self._vbo.write(data.tobytes())
         ctx = self._ctx
-        self._fbo.use()
-        ctx.viewport = (0, 0, self.width, self.height)
-        ctx.clear(0.0, 0.0, 0.0, 0.0)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.depth_func = "<="
-        if self.blend == "shader":
-            padded = np.zeros(_MAX_KEYS, dtype="f4")
-            padded[:len(weights)] = weights
-            self._program["weights"].write(padded.tobytes())
-        else:
-            mixed = np.tensordot(weights.astype(np.float32), self._stack, axes=1)
-            self._keys.write(np.clip(mixed + 0.5, 0, 255).astype(np.uint8).tobytes())
-        self._keys.use(0)
-        self._array.render(moderngl.TRIANGLES)
-        if wireframe:
-            self._edges["colour"].value = tuple(np.asarray(wire_colour, dtype=np.float64) / 255.0)
-            ctx.disable(moderngl.DEPTH_TEST)
-            self._edge_array.render(moderngl.LINES)
-        raw = np.frombuffer(self._fbo.read(components=4, alignment=1), dtype=np.uint8)
-        rgba = raw.reshape(self.height, self.width, 4)[::-1]
+        with ctx:  # this renderer's context made current (another renderer may be open)
+            self._vbo.write(data.tobytes())
+            self._fbo.use()
+            ctx.viewport = (0, 0, self.width, self.height)
+            ctx.clear(0.0, 0.0, 0.0, 0.0)
+            ctx.enable(moderngl.DEPTH_TEST)
+            ctx.depth_func = "<="
+            if self.blend == "shader":
+                padded = np.zeros(_MAX_KEYS, dtype="f4")
+                padded[:len(weights)] = weights
+                self._program["weights"].write(padded.tobytes())
+            else:
+                mixed = np.tensordot(weights.astype(np.float32), self._stack, axes=1)
+                self._keys.write(np.clip(mixed + 0.5, 0, 255).astype(np.uint8).tobytes())
+            self._keys.use(0)
+            self._array.render(moderngl.TRIANGLES)
+            if wireframe:
+                self._edges["colour"].value = tuple(np.asarray(wire_colour, dtype=np.float64) / 255.0)
+                ctx.disable(moderngl.DEPTH_TEST)
+                self._edge_array.render(moderngl.LINES)
+            raw = np.frombuffer(self._fbo.read(components=4, alignment=1), dtype=np.uint8)
+            rgba = raw.reshape(self.height, self.width, 4)[::-1]
         covered = rgba[..., 3] > 0
         if background is None:
             image = np.ascontiguousarray(rgba[..., :3])
@@ -220,6 +221,10 @@ class CloneRenderer:
 
     def close(self):
         if self._ctx is not None:
+            with self._ctx:
+                for resource in (self._array, self._edge_array, self._vbo, self._ibo, self._lines, self._keys,
+                                 self._program, self._edges, self._fbo):
+                    resource.release()
             self._ctx.release()
             self._ctx = None
 
