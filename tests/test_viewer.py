@@ -504,3 +504,60 @@ def test_a_still_expression_has_no_play_controls_and_its_sliders_start_from_its_
     # every unit of the recipe at 0: nothing of the expression is left
     assert report["zeroed"]["recipe"] == ""
     assert report["zeroed"]["influences"] == pytest.approx({"expression": 0, "AU12": 0, "AU26": 0, "AU4": 0})
+
+
+@pytest.mark.parametrize("size", ["1280x800", "1024x700"])
+def test_sliders_adjust_an_animated_expressions_apex_and_the_animation_plays_it(tmp_path_factory, size):
+    from faceanim.expressions import envelope
+    from faceanim.geometry.animation import Animation
+
+    out = tmp_path_factory.mktemp(f"viewer_express_{size}")
+    target = portrait.avatar_target()
+    table = {"AU12": {12: 300, 13: 300, 6: 80, 7: 80}, "AU26": {3: 500}, "AU4": {31: -150, 32: -150}}
+    shapes = {}
+    for name, faps in table.items():
+        values, mask = np.zeros((1, 68)), np.zeros((1, 68), bool)
+        for fap, value in faps.items():
+            values[0, fap - 1], mask[0, fap - 1] = value, True
+        shapes[name] = animate_faps(FapStream(values, mask, 25.0), target).positions[0] - target.mesh.vertices
+    made = 0.8 * shapes["AU12"] + 0.5 * shapes["AU26"]
+    strength = envelope(50)  # as faceanim express --frames 50 writes it: onset, apex, offset over 2 s
+    clip = morphs_from_animation(Animation(target.mesh, target.mesh.vertices + strength[:, None, None] * made, 25.0))
+    glb = out / "smile.glb"
+    write_glb(glb, target.mesh, MorphSet(np.concatenate([clip.targets, np.stack(list(shapes.values()))]),
+                                         (*clip.names, *shapes), np.hstack([clip.weights, np.zeros((50, 3))]), 25.0),
+              extras={"recipe": "12:0.80,26:0.50",
+                      "au_faps": {name: {str(k): v for k, v in faps.items()} for name, faps in table.items()}})
+    with pipeline.view(glb, video=shared("videos", "d0.mp4"), port=0).start() as server:
+        report = browser_check(server.url, out, size, script="browser_express.js")
+    assert report["console_errors"] == [] and report["page_errors"] == []
+    viewport = report["viewport"]
+    assert [viewport["width"], viewport["height"]] == [int(v) for v in size.split("x")]
+    assert inside(report["face"], viewport) and inside(report["video"], viewport), (report["face"], report["video"])
+    assert report["face"]["right"] <= report["video"]["left"] and inside(report["transport"], viewport)
+    assert report["units"] == {"AU4": 0, "AU12": 0.8, "AU26": 0.5} and "adjust its apex" in report["help"]
+    apex_times = np.flatnonzero(strength == 1) / 25.0
+    assert apex_times[0] - 1e-6 <= report["apex"] <= apex_times[-1] + 1e-6
+    # raising AU12 by 0.2 while playing: paused at the apex, the recipe's shape kept, 0.2 of AU12 added
+    apex = report["at_apex"]
+    assert not apex["playing"] and apex["time"] == pytest.approx(report["apex"])
+    assert apex["strength"] == pytest.approx(1)
+    assert apex["recipe"] == "12:1.00,26:0.50"
+    assert apex["influences"]["AU12"] == pytest.approx(0.2) and apex["influences"]["AU26"] == pytest.approx(0)
+    assert max(apex["influences"][n] for n in clip.names) == pytest.approx(1, abs=1e-3)
+    # halfway up the onset the adjustment is at the clip's strength there, not the apex's
+    onset = report["onset"]
+    want = np.interp(onset["time"], np.arange(50) / 25.0, strength)
+    assert onset["strength"] == pytest.approx(want, abs=0.02) and 0.3 < want < 0.7
+    assert onset["influences"]["AU12"] == pytest.approx(0.2 * onset["strength"], abs=1e-6)
+    # playing: the adjusted expression over time, its units following the clip's strength
+    played = report["played"]
+    assert all(p["playing"] for p in played) and played[-1]["time"] != played[0]["time"]
+    assert all(p["influences"]["AU12"] == pytest.approx(0.2 * p["strength"], abs=1e-6) for p in played)
+    assert max(p["strength"] for p in played) - min(p["strength"] for p in played) > 0.3
+    assert face_difference(out / "played_a.png", out / "played_b.png") > 0.05
+    # every recipe unit at 0: nothing of the expression is left, at the apex as at rest
+    zeroed = report["zeroed"]
+    assert zeroed["recipe"] == "" and all(v == pytest.approx(0, abs=1e-6) for v in zeroed["influences"].values())
+    assert face_difference(out / "zeroed.png", out / "rest.png") < 0.01
+    assert face_difference(out / "apex.png", out / "rest.png") > 0.2

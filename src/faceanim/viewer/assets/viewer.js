@@ -55,7 +55,7 @@ async function main() {
 
   const video = config.video ? setUpVideo(config.video) : null;
   const curves = config.curves ? await setUpCurves(config.curves) : null;
-  if (face) setUpEditor(face);
+  const editor = face ? setUpEditor(face) : null;
   // Play controls only where something plays: an animation or a video.
   $('transport').hidden = !clip && !video;
   $('face-caption').textContent = clip ? 'animated face (drag to turn)' : 'still face (drag to turn)';
@@ -68,6 +68,7 @@ async function main() {
 
   function apply() {
     if (!viewer.editing && clip) mixer.setTime(viewer.duration ? viewer.time % viewer.duration : 0);
+    if (editor) editor.adjust(); // the sliders' adjustment, at the clip's time
     if (video && video.readyState >= 1) {
       video.playbackRate = viewer.speed;
       if (viewer.playing && !viewer.editing) {
@@ -114,36 +115,52 @@ async function main() {
     return element;
   }
 
-  // The sliders start from the model's recipe (a `faceanim express` .glb carries it in its extras, with
-  // the recipe made whole as the morph target "expression") and adjust it. The made expression is not
-  // the plain sum of its units' morphs (the muscles interact), so the face is mixed as
+  // The sliders start from the model's recipe (a `faceanim express` .glb carries it in its extras) and
+  // adjust the expression's apex, the recipe at full strength. The made expression is not the plain sum
+  // of its units' morphs (the muscles interact), so the apex is mixed as
   //   a * expression + sum over units of (slider - a * recipe) * unit,
   // where a, the share of the recipe still in place (each recipe unit's slider over its recipe value, at
   // most 1, averaged), is 1 at the recipe, so the face is exactly the one made, and 0 with every recipe
-  // unit at 0, so the face is the units alone (the rest face with all at 0). A model without a recipe
-  // starts every slider at 0 and mixes the units alone.
+  // unit at 0, so the face is the units alone (the rest face with all at 0). A still carries the
+  // expression as the morph target "expression". An animated one (onset, apex, offset) carries it as its
+  // clip: the clip's shapes are scaled by a and the units' part by e(t), the clip's strength at time t
+  // (its shape at t projected on its shape at the apex, the frame that moves the face most: 0 at rest,
+  // 1 at the apex), so the animation plays the adjusted expression over time. A model without a recipe
+  // starts every slider at 0 and adds the units alone.
   function setUpEditor(mesh) {
     const units = Object.entries(mesh.morphTargetDictionary).filter(([name]) => AU_NAME.test(name));
-    if (!units.length) return;
+    if (!units.length) return null;
     $('editor').hidden = false;
     const extras = mesh.userData.faceanim || {};
     const table = extras.au_faps || null;
     const start = parseRecipe(extras.recipe || '');
     const weights = { ...start }; // every unit of the recipe, with a slider or not
     if (Object.keys(start).length) {
-      $('editor-help').textContent = `(they start from the model's recipe ${recipe(start)} and adjust it)`;
+      $('editor-help').textContent = `(they start from the model's recipe ${recipe(start)} and adjust `
+        + `${clip ? 'its apex; the animation plays it' : 'it'})`;
       $('recipe').textContent = recipe(weights);
     }
     const expression = mesh.morphTargetDictionary.expression;
     const inRecipe = Object.keys(start).filter((k) => start[k] > 0);
+    const strength = clip && expression === undefined && inRecipe.length ? clipStrength(mesh, clip, units) : null;
+    let share = 1;
     function mix() {
-      const share = inRecipe.length ? inRecipe.reduce((sum, k) => sum + Math.min(1, (weights[k] || 0) / start[k]), 0)
+      share = inRecipe.length ? inRecipe.reduce((sum, k) => sum + Math.min(1, (weights[k] || 0) / start[k]), 0)
         / inRecipe.length : 1;
-      if (expression !== undefined && inRecipe.length) mesh.morphTargetInfluences[expression] = share;
-      for (const [name, index] of units) mesh.morphTargetInfluences[index] = (weights[name] || 0) - share * (start[name] || 0);
+      adjust();
+    }
+    // The face at the clip's time (the mixer has just set the clip's weights) or the still's, adjusted.
+    function adjust() {
+      const influences = mesh.morphTargetInfluences;
+      let e = 1;
+      if (strength) {
+        e = strength.at(influences);
+        for (const index of strength.shapes) influences[index] *= share;
+      } else if (expression !== undefined && inRecipe.length) influences[expression] = share;
+      for (const [name, index] of units) influences[index] = e * ((weights[name] || 0) - share * (start[name] || 0));
     }
     const sliders = $('sliders');
-    for (const [name] of units.sort((a, b) => auNumber(a[0]) - auNumber(b[0]))) {
+    for (const [name] of [...units].sort((a, b) => auNumber(a[0]) - auNumber(b[0]))) {
       const value = start[name] || 0;
       const label = document.createElement('label');
       label.classList.toggle('in-recipe', name in start);
@@ -151,7 +168,10 @@ async function main() {
         data-unit="${name}"><output>${value.toFixed(2)}</output>`;
       const input = label.querySelector('input');
       input.addEventListener('input', () => {
-        if (!viewer.editing) { // leave the animation, keeping the expression shown; the units adjust it
+        if (strength) { // pause; from playing, show the apex being adjusted (a time scrubbed to stays)
+          if (viewer.playing) viewer.time = strength.apex;
+          pause();
+        } else if (!viewer.editing) { // leave the animation, keeping the expression shown; the units adjust it
           pause();
           viewer.editing = true;
         }
@@ -181,6 +201,53 @@ async function main() {
       ([name, index]) => [name, mesh.morphTargetInfluences[index]]));
     viewer.recipe = () => recipe(weights);
     viewer.fap = () => fapFile(weights, table);
+    viewer.apex = strength ? strength.apex : null;
+    viewer.strength = () => (strength ? strength.last : null);
+    return { adjust };
+  }
+
+  // An animated expression's strength over time: its clip's shapes (the morph targets other than the
+  // units) at a time, w, projected on those at the apex, wA, through the shapes' inner products G:
+  // e = w.G.wA / wA.G.wA, clipped to [0, 1]. The apex is the clip's key whose shape is largest.
+  function clipStrength(mesh, clip, units) {
+    const count = mesh.morphTargetInfluences.length;
+    const unitIndex = new Set(units.map(([, index]) => index));
+    const shapes = [...Array(count).keys()].filter((i) => !unitIndex.has(i));
+    const track = clip.tracks.find((t) => t.name.endsWith('.morphTargetInfluences'));
+    const targets = mesh.geometry.morphAttributes.position || [];
+    if (!track || !shapes.length || targets.length !== count) return null;
+    // G over the shapes, from their positions (relative, as glTF's are); a stride keeps it light on big meshes.
+    const size = targets[0].count;
+    const stride = Math.max(1, Math.floor((shapes.length * shapes.length * size) / 2e7));
+    const G = shapes.map(() => new Float64Array(shapes.length));
+    for (let a = 0; a < shapes.length; a++) {
+      for (let b = a; b < shapes.length; b++) {
+        const [p, q] = [targets[shapes[a]], targets[shapes[b]]];
+        let sum = 0;
+        for (let v = 0; v < size; v += stride) sum += p.getX(v) * q.getX(v) + p.getY(v) * q.getY(v) + p.getZ(v) * q.getZ(v);
+        G[a][b] = G[b][a] = sum;
+      }
+    }
+    const dot = (w, u) => {
+      let sum = 0;
+      for (let a = 0; a < shapes.length; a++) for (let b = 0; b < shapes.length; b++) sum += w[a] * G[a][b] * u[b];
+      return sum;
+    };
+    const width = track.values.length / track.times.length; // the values of one key
+    const keys = Array.from(track.times, (t, k) => shapes.map((i) => track.values[k * width + i]));
+    let apexKey = 0;
+    keys.forEach((w, k) => { if (dot(w, w) > dot(keys[apexKey], keys[apexKey])) apexKey = k; });
+    const wA = keys[apexKey];
+    const norm = dot(wA, wA);
+    if (!(norm > 0)) return null;
+    const result = {
+      apex: track.times[apexKey], shapes, last: null,
+      at(influences) {
+        result.last = Math.min(1, Math.max(0, dot(shapes.map((i) => influences[i]), wA) / norm));
+        return result.last;
+      },
+    };
+    return result;
   }
 
   // One chart per group of FAPs (jaw, lips, ...; grouped and ranked by faceanim.viewer.fap_curves), each
