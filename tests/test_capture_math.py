@@ -13,7 +13,7 @@ from faceanim.capture.metric import canonical_face, metric_geometry
 from faceanim.capture.neutral import parse_neutral, relaxed_window
 from faceanim.capture.smoothing import OneEuro, jitter, one_euro
 from faceanim.errors import InputError
-from faceanim.geometry.align import batch_procrustes, weighted_procrustes
+from faceanim.geometry.align import batch_procrustes, robust_procrustes, weighted_procrustes
 from faceanim.motion import EYEBALL_RADIUS_ES0, Motion, clip_to_range, head_angles, motion_to_faps
 from faceanim.mpeg4 import Fapu, fap_table, feature_points
 
@@ -57,6 +57,34 @@ def test_mediapipe_golden_geometry():
     metric, found = metric_geometry(landmarks, 820, 1024)
     np.testing.assert_allclose(metric[:468], mesh, atol=1e-4)
     np.testing.assert_allclose(found, pose, atol=1e-4)
+
+
+def test_batch_procrustes_takes_one_set_of_weights_a_frame():
+    rng = np.random.default_rng(2)
+    p = rng.normal(size=(25, 3))
+    targets, weights = rng.normal(size=(4, 25, 3)), rng.random((4, 25))
+    found = batch_procrustes(p, targets, weights)
+    for t in range(4):
+        np.testing.assert_allclose(found[t], weighted_procrustes(p, targets[t], weights[t]), atol=1e-12)
+
+
+def test_robust_procrustes_is_not_tilted_by_a_few_points_carried_off_together():
+    """A forehead lifted 5 mm by a brow raise (5 of 30 skull points, all the same way): the plain fit
+    tilts and lifts the head; the robust one is pulled less than a tenth as far (Cauchy weights
+    shrink, they do not reject). With nothing carried off both are the same."""
+    rng = np.random.default_rng(3)
+    rest = rng.normal(size=(30, 3)) * 4.0
+    R = rotation(0, 0.2) @ rotation(1, 0.1)
+    seen = (1.1 * rest @ R.T + [0.5, -1.0, 2.0])[None]
+    lifted = seen.copy()
+    lifted[0, :5] += 1.1 * np.array([0.0, 0.5, 0.0]) @ R.T
+    weights = np.ones(30)
+    truth = batch_procrustes(rest, seen, weights)
+    plain = batch_procrustes(rest, lifted, weights)
+    robust = robust_procrustes(rest, lifted, weights, scale=0.1)
+    assert np.abs(plain - truth).max() > 1e-2
+    assert np.abs(robust - truth).max() < 0.1 * np.abs(plain - truth).max()
+    np.testing.assert_allclose(robust_procrustes(rest, seen, weights, scale=0.1), truth, atol=1e-12)
 
 
 def test_landmark_maps_respect_sides_and_symmetry():

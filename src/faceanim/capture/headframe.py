@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ..geometry.align import batch_procrustes
+from ..geometry.align import robust_procrustes
 from ..motion import Motion
 from ..mpeg4 import fapu_from_points
+from .browscores import BrowDrive
 from .jaw import correct_jaw_depth
 from .landmarks import FEATURE_POINT_LANDMARK
 from .metric import canonical_face, metric_geometry_frames
@@ -16,7 +17,7 @@ from .smoothing import OneEuro, OneEuroFilter
 from .track import Track
 
 __all__ = ["head_frame", "head_frame_into", "settle", "displacements_from", "mouth_gap", "track_to_motion",
-           "landmark_names", "restabilise", "DEFAULT_SMOOTHING"]
+           "landmark_names", "restabilise", "rest_window", "brow_drive", "DEFAULT_SMOOTHING"]
 
 DEFAULT_SMOOTHING = OneEuro()
 
@@ -24,6 +25,11 @@ DEFAULT_SMOOTHING = OneEuro()
 # 147/376 and 205/425 on the cheeks a smile raises.
 _MOVED_BY_EXPRESSION = (136, 365, 147, 376, 205, 425)
 _BLOCK = 256  # frames fitted at once: the fits' temporaries stay a few MB however long the video
+# A skull landmark this far (cm) from its rest position counts half in the head fit (robust_procrustes).
+# MediaPipe's depths of the forehead and eye corners shift with brow raises, blinks and smiles; fitted
+# with full weights they pitched the head by 1.5-3.5 degrees on ICT renders of a still head, and the
+# whole face seemed to move (benchmarks/roundtrip_ict.py).
+_SKULL_SPREAD = 0.1
 
 
 def landmark_names(count: int) -> tuple[str, ...]:
@@ -71,7 +77,8 @@ def restabilise(points: np.ndarray, pose: np.ndarray, rest: np.ndarray, usable: 
 
     The head frame from :func:`head_frame` is fitted to MediaPipe's canonical face, which is nobody's
     face at rest: a person's expression changes how it fits. Fitted to the person's own neutral, the
-    skull's points stay put and only expression remains.
+    skull's points stay put and only expression remains. The fit is robust (:func:`robust_procrustes`):
+    skull points an expression carries off count less.
     """
     points, pose = np.array(points, dtype=np.float64), np.array(pose, dtype=np.float64)
     _restabilise_in_place(points, pose, rest, usable)
@@ -89,7 +96,7 @@ def _restabilise_in_place(points, pose: np.ndarray, rest: np.ndarray, usable: np
             continue
         block = points[start:stop]
         moved = block[frames - start]
-        to_frame = batch_procrustes(rest[:468], moved[:, :468], weights)
+        to_frame = robust_procrustes(rest[:468], moved[:, :468], weights, scale=_SKULL_SPREAD)
         back = np.linalg.inv(to_frame)
         block[frames - start] = np.einsum("tij,tlj->tli", back[:, :3, :3], moved) + back[:, None, :3, 3]
         points[start:stop] = block
@@ -166,6 +173,22 @@ def settle(points, pose: np.ndarray, usable: np.ndarray, fps: float, *, neutral=
     return rest, fapu
 
 
+def rest_window(points, usable: np.ndarray, fps: float, neutral=None, neutral_points=None):
+    """The ``(start, end)`` frames the neutral is read from: ``neutral`` when given, else those
+    :func:`relaxed_window` finds in head-frame ``points``; None when ``neutral_points`` give the
+    neutral instead. What :func:`settle` takes as ``neutral``."""
+    if neutral_points is not None or neutral is not None:
+        return None if neutral_points is not None else neutral
+    return relaxed_window(points, usable, fps, mouth=mouth_gap(points))
+
+
+def brow_drive(blendshapes, names, times, fapu, usable: np.ndarray, window) -> BrowDrive | None:
+    """The brow heights the tracker's scores call for (:class:`~.browscores.BrowDrive`), calibrated on
+    the ``window`` frames at rest (all usable frames when None); None without brow scores."""
+    at_rest = usable if window is None else np.arange(*window)
+    return BrowDrive.of_scores(blendshapes, names, times, fapu.ens0, at_rest)
+
+
 def displacements_from(points: np.ndarray, rest: np.ndarray, usable: np.ndarray) -> np.ndarray:
     """Head-frame ``points (t, L, 3)`` (changed in place) as displacements from ``rest``: NaN on frames
     without a face, the jaw's points given the depth the chin's drop implies (:func:`.jaw.correct_jaw_depth`)."""
@@ -175,7 +198,7 @@ def displacements_from(points: np.ndarray, rest: np.ndarray, usable: np.ndarray)
 
 
 def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTHING,
-                    neutral_points=None) -> Motion:
+                    neutral_points=None, scores: bool = True) -> Motion:
     """The tracked face's motion, held in memory (a long video streams through
     :func:`faceanim.capture.stream.captured` instead).
 
@@ -192,6 +215,9 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
     neutral_points : (L, 3) float64, optional
         A neutral measured elsewhere (for example from a separate image), in the head frame;
         overrides ``neutral``.
+    scores : bool
+        Brow heights from the tracker's blendshape scores where the track has them
+        (:mod:`.browscores`); False keeps the tracked heights.
     """
     usable = track.usable
     # One (T, L, 3) array, made here and then changed in place, step by step: a long video's
@@ -199,7 +225,11 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
     points = np.empty(track.landmarks.shape)
     pose = np.empty((len(track), 4, 4))
     head_frame_into(track.landmarks, usable, track.times, track.width, track.height, points, pose, smoothing)
-    rest, fapu = settle(points, pose, usable, track.fps, neutral=neutral, neutral_points=neutral_points)
+    window = rest_window(points, usable, track.fps, neutral, neutral_points)
+    rest, fapu = settle(points, pose, usable, track.fps, neutral=window, neutral_points=neutral_points)
     displacements = displacements_from(points, rest, usable)
+    brows = brow_drive(track.blendshapes, track.blendshape_names, track.times, fapu, usable, window) if scores else None
+    if brows is not None:
+        brows.apply(displacements, 0)
     displacements.flags.writeable = False  # handed over: the Motion takes it uncopied
     return Motion(landmark_names(len(rest)), rest, displacements, pose, track.fps, fapu, valid=usable)

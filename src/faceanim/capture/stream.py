@@ -19,7 +19,15 @@ import numpy as np
 from ..errors import InputError
 from ..framestore import FrameStore
 from ..motion import Motion
-from .headframe import DEFAULT_SMOOTHING, displacements_from, head_frame_into, landmark_names, settle
+from .headframe import (
+    DEFAULT_SMOOTHING,
+    brow_drive,
+    displacements_from,
+    head_frame_into,
+    landmark_names,
+    rest_window,
+    settle,
+)
 from .smoothing import OneEuro
 from .track import FrameFacts, Track, _Rows, fill_short_gaps, track_frames
 
@@ -72,13 +80,13 @@ class _StoreRows:
 
 
 def captured(source, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTHING, neutral_points=None,
-             progress=None, folder=None, model=None, max_gap: float = 0.2) -> Capture:
+             progress=None, folder=None, model=None, max_gap: float = 0.2, scores: bool = True) -> Capture:
     """The :class:`Capture` of a video (or of a :class:`~faceanim.capture.track.Track` already made),
     its landmarks and head-frame points in temporary files in ``folder`` (the system's temporary
     folder by default). The files have no name in any folder; their space is freed when the capture
     and everything that reads its motion (a streamed animation) are let go.
 
-    ``neutral``, ``smoothing`` and ``neutral_points`` as for
+    ``neutral``, ``smoothing``, ``neutral_points`` and ``scores`` as for
     :func:`~faceanim.capture.headframe.track_to_motion`; ``progress`` and ``model`` as for
     :func:`~faceanim.capture.track.track_video`. The motion's frames are the ones
     ``track_to_motion(track_video(source))`` gives, to the float32 precision of the head-frame
@@ -115,10 +123,13 @@ def captured(source, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTH
         points.append(np.zeros((min(1024, len(raw) - start), *raw.frame_shape)))
     pose = np.empty((len(raw), 4, 4))
     head_frame_into(raw, usable, times, width, height, points, pose, smoothing)
-    rest, fapu = settle(points, pose, usable, fps, neutral=neutral, neutral_points=neutral_points)
+    window = rest_window(points, usable, fps, neutral, neutral_points)
+    rest, fapu = settle(points, pose, usable, fps, neutral=window, neutral_points=neutral_points)
+    brows = brow_drive(blendshapes, names, times, fapu, usable, window) if scores else None
 
     def frames(start: int, stop: int) -> np.ndarray:
-        return displacements_from(points[start:stop], rest, usable[start:stop])
+        moved = displacements_from(points[start:stop], rest, usable[start:stop])
+        return moved if brows is None else brows.apply(moved, start)
 
     motion = Motion.streamed(landmark_names(len(rest)), rest, frames, pose, fps, fapu, valid=usable)
     return Capture(motion, raw, valid, filled, times, fps, width, height, name, blendshapes, names)

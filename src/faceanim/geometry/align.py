@@ -6,7 +6,7 @@ import numpy as np
 
 from ..validation import as_array
 
-__all__ = ["weighted_procrustes", "batch_procrustes"]
+__all__ = ["weighted_procrustes", "batch_procrustes", "robust_procrustes"]
 
 
 def weighted_procrustes(source, target, weights=None, *, scale: bool = True) -> np.ndarray:
@@ -63,21 +63,43 @@ def weighted_procrustes(source, target, weights=None, *, scale: bool = True) -> 
 
 def batch_procrustes(source, targets, weights) -> np.ndarray:
     """:func:`weighted_procrustes` (with scale) of one ``source (N, 3)`` onto each of ``targets
-    (T, N, 3)`` at once: ``(T, 4, 4)``. Inputs are trusted (checked by the caller)."""
-    w = weights / weights.sum()
+    (T, N, 3)`` at once: ``(T, 4, 4)``. ``weights`` are ``(N,)`` shared by every frame or ``(T, N)``
+    one set a frame. Inputs are trusted (checked by the caller)."""
+    w = np.asarray(weights, dtype=np.float64)
+    w = np.broadcast_to(w / w.sum(axis=-1, keepdims=True), targets.shape[:2])
     mu_s = w @ source
-    mu_t = np.einsum("n,tnd->td", w, targets)
-    cs = source - mu_s
+    mu_t = np.einsum("tn,tnd->td", w, targets)
+    cs = source - mu_s[:, None]
     ct = targets - mu_t[:, None]
-    covariance = np.einsum("tni,nj->tij", ct * w[None, :, None], cs)
+    covariance = np.einsum("tni,tnj->tij", ct * w[..., None], cs)
     U, S, Vt = np.linalg.svd(covariance)
     flip = np.sign(np.linalg.det(U) * np.linalg.det(Vt))
     flip[flip == 0] = 1.0
     U[:, :, 2] *= flip[:, None]
     S[:, 2] *= flip
     R = U @ Vt
-    s = S.sum(axis=1) / (w * (cs * cs).sum(axis=1)).sum()
+    s = S.sum(axis=1) / (w * (cs * cs).sum(axis=-1)).sum(axis=1)
     M = np.tile(np.eye(4), (len(targets), 1, 1))
     M[:, :3, :3] = s[:, None, None] * R
-    M[:, :3, 3] = mu_t - np.einsum("tij,j->ti", M[:, :3, :3], mu_s)
+    M[:, :3, 3] = mu_t - np.einsum("tij,tj->ti", M[:, :3, :3], mu_s)
     return M
+
+
+def robust_procrustes(source, targets, weights, *, scale: float, rounds: int = 5) -> np.ndarray:
+    """:func:`batch_procrustes` that lets points which moved away from ``source`` count less.
+
+    Iteratively reweighted: after each fit, a point ``r`` away from its source position keeps
+    ``weights / (1 + (r / scale)^2)`` (Cauchy's weight), so a few points carried off together (a
+    forehead a brow raise lifts, cheeks a smile raises) no longer tilt the fit, while points that
+    agree within ``scale`` keep their full say. ``(T, 4, 4)``, source onto each target.
+    """
+    w0 = np.asarray(weights, dtype=np.float64)
+    w = np.broadcast_to(w0, targets.shape[:2])
+    for _ in range(rounds):
+        M = batch_procrustes(source, targets, w)
+        fitted = np.einsum("tij,nj->tni", M[:, :3, :3], source) + M[:, None, :3, 3]
+        # residuals measured at the source's size: divide out the fitted scale
+        size = np.cbrt(np.abs(np.linalg.det(M[:, :3, :3])))[:, None]
+        r = np.linalg.norm(targets - fitted, axis=-1) / size
+        w = w0 / (1.0 + (r / scale) ** 2)
+    return batch_procrustes(source, targets, w)

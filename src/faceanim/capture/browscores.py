@@ -1,0 +1,95 @@
+"""Brows from the Face Landmarker's blendshape scores, calibrated per person against the neutral.
+
+The tracker's brow landmarks follow a brow raise by about a third (0.33-0.40 of the true lift on ICT
+renders, `benchmarks/roundtrip_ict.py`): its mesh is held to a typical shape. Its blendshape scores are
+trained on exactly that cue. Each brow point's height in the head frame is therefore read from the
+scores: for a score ``s`` whose median over the neutral frames is ``s0``, ``(s - s0) / (1 - s0)``
+clipped to [0, 1] says how far the expression is on, and
+
+* ``browInnerUp`` raises the inner end of each brow, ``browOuterUp{Left,Right}`` the outer end, by
+  :data:`RAISE` x ENS0 at full strength, blended along the brow;
+* ``browDown{Left,Right}`` lowers the whole brow by :data:`LOWER` x ENS0.
+
+Only the brow points' vertical movement is replaced; their sideways and depth movement stay as
+tracked, and so does every other point. A frame without scores (a gap the capture filled) keeps its
+tracked heights. The constants were chosen on one ICT identity pair (seed 3) and reported on others
+(`benchmarks/brow_scores.py`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..validation import as_array
+from .smoothing import OneEuro, OneEuroFilter
+
+__all__ = ["BrowDrive", "BROWS", "RAISE", "LOWER"]
+
+RAISE, LOWER = 0.35, 0.2  # ENS0 at a full score
+# MediaPipe's brow landmarks, upper then lower contour, inner end to outer end.
+BROWS = {"Left": ((336, 296, 334, 293, 300), (285, 295, 282, 283, 276)),
+         "Right": ((107, 66, 105, 63, 70), (55, 65, 52, 53, 46))}
+_SCORES = ("browInnerUp", "browOuterUpLeft", "browOuterUpRight", "browDownLeft", "browDownRight")
+
+
+@dataclass(frozen=True, eq=False)
+class BrowDrive:
+    """The brow heights a video's scores call for.
+
+    Parameters
+    ----------
+    heights : (T, 20) float64
+        Vertical displacement (cm, head frame) of each point of :attr:`points` per frame; NaN where
+        the frame has no scores.
+    points : (20,) int64
+        The brow landmarks, in :data:`BROWS` order (left upper, left lower, right upper, right lower).
+    """
+
+    heights: np.ndarray
+    points: np.ndarray
+
+    def __post_init__(self):
+        object.__setattr__(self, "heights", as_array(self.heights, "heights", shape=("T", 20), frozen=True,
+                                                     finite=False))
+        object.__setattr__(self, "points", as_array(self.points, "points", shape=(20,), dtype=np.int64,
+                                                    frozen=True))
+
+    @classmethod
+    def of_scores(cls, scores, names, times, ens0: float, neutral_frames) -> BrowDrive | None:
+        """From ``scores (T, S)`` named ``names``, at ``times (T,)`` seconds; ``neutral_frames`` the
+        frames at rest (a boolean mask or indices) the scores are calibrated on. None when the scores
+        lack a brow score or no neutral frame has scores."""
+        names = list(names)
+        if scores is None or any(n not in names for n in _SCORES):
+            return None
+        raw = np.asarray(scores, dtype=np.float64)[:, [names.index(n) for n in _SCORES]]
+        at_rest = raw[neutral_frames]
+        at_rest = at_rest[np.isfinite(at_rest).all(axis=1)]
+        if not len(at_rest):
+            return None
+        # the landmarks are filtered (One Euro) before they become motion; the scores that replace
+        # them get the same filter, so a brow does not jitter more than the rest of the face
+        smooth = OneEuroFilter(OneEuro())(raw[:, :, None], np.asarray(times, dtype=np.float64))[:, :, 0]
+        s0 = np.median(at_rest, axis=0)
+        on = np.clip((smooth - s0) / np.maximum(1.0 - s0, 1e-3), 0.0, 1.0)
+        inner, outer, down = on[:, 0], {"Left": on[:, 1], "Right": on[:, 2]}, {"Left": on[:, 3], "Right": on[:, 4]}
+        columns, points = [], []
+        for side, contours in BROWS.items():
+            for contour in contours:
+                for k, point in enumerate(contour):
+                    along = k / (len(contour) - 1)  # 0 at the inner end, 1 at the outer
+                    raise_ = (1 - along) * inner + along * outer[side]
+                    columns.append(ens0 * (RAISE * raise_ - LOWER * down[side]))
+                    points.append(point)
+        return cls(np.stack(columns, axis=1), np.array(points))
+
+    def apply(self, displacements, start: int) -> np.ndarray:
+        """``displacements (t, L, 3)`` of frames ``start .. start + t`` (head frame, cm), changed in
+        place: each brow point's height is the scores'; returned."""
+        heights = self.heights[start:start + len(displacements)]
+        have = np.isfinite(heights)
+        column = displacements[:, self.points, 1]
+        displacements[:, self.points, 1] = np.where(have & np.isfinite(column), heights, column)
+        return displacements

@@ -1,0 +1,67 @@
+"""Brows from the Face Landmarker's scores: calibration against the neutral, the heights, what is kept."""
+
+import numpy as np
+
+from faceanim.capture.browscores import BROWS, LOWER, RAISE, BrowDrive
+
+NAMES = ("browDownLeft", "browDownRight", "browInnerUp", "browOuterUpLeft", "browOuterUpRight", "jawOpen")
+
+
+def scores_over(frames: int, **on) -> np.ndarray:
+    """(frames, 6) scores at a resting 0.1, the named ones at the given value from frame 20 on."""
+    scores = np.full((frames, len(NAMES)), 0.1)
+    for name, value in on.items():
+        scores[20:, NAMES.index(name)] = value
+    return scores
+
+
+def drive_of(scores, ens0=3.0):
+    times = np.arange(len(scores)) / 25.0
+    return BrowDrive.of_scores(scores, NAMES, times, ens0, np.arange(10))
+
+
+def test_a_full_inner_raise_lifts_the_inner_ends_and_not_the_outer():
+    drive = drive_of(scores_over(80, browInnerUp=1.0))
+    inner = [list(drive.points).index(BROWS["Left"][0][0]), list(drive.points).index(BROWS["Right"][1][0])]
+    outer = [list(drive.points).index(BROWS["Left"][0][-1]), list(drive.points).index(BROWS["Right"][1][-1])]
+    np.testing.assert_allclose(drive.heights[:10], 0.0, atol=1e-12)           # calibrated on the neutral
+    np.testing.assert_allclose(drive.heights[-1, inner], RAISE * 3.0, rtol=1e-3)  # settled after the filter
+    np.testing.assert_allclose(drive.heights[-1, outer], 0.0, atol=1e-12)
+
+
+def test_brow_down_lowers_its_own_side_only():
+    drive = drive_of(scores_over(80, browDownLeft=1.0))
+    points = list(drive.points)
+    left = [points.index(p) for contour in BROWS["Left"] for p in contour]
+    right = [points.index(p) for contour in BROWS["Right"] for p in contour]
+    np.testing.assert_allclose(drive.heights[-1, left], -LOWER * 3.0, rtol=1e-3)
+    np.testing.assert_allclose(drive.heights[-1, right], 0.0, atol=1e-12)
+
+
+def test_scores_below_the_neutral_do_not_push_the_brows():
+    drive = drive_of(scores_over(60, browInnerUp=0.0, browOuterUpLeft=0.0, browDownRight=0.0))
+    np.testing.assert_allclose(drive.heights, 0.0, atol=1e-12)
+
+
+def test_apply_replaces_only_the_brows_heights_and_keeps_frames_without_scores():
+    scores = scores_over(40, browInnerUp=1.0)
+    scores[30] = np.nan  # a gap the capture filled: landmarks but no scores
+    drive = drive_of(scores)
+    moved = np.random.default_rng(0).normal(size=(40, 478, 3))
+    before = moved.copy()
+    drive.apply(moved, 0)
+    others = np.setdiff1d(np.arange(478), drive.points)
+    np.testing.assert_array_equal(moved[:, others], before[:, others])
+    np.testing.assert_array_equal(moved[:, drive.points, ::2], before[:, drive.points, ::2])  # x and z kept
+    np.testing.assert_array_equal(moved[30, drive.points], before[30, drive.points])
+    np.testing.assert_allclose(moved[35, drive.points, 1], drive.heights[35])
+    chunk = before[32:40].copy()
+    np.testing.assert_array_equal(drive.apply(chunk, 32), moved[32:40])  # chunk by chunk, as streamed
+
+
+def test_no_brow_scores_or_no_neutral_scores_means_no_drive():
+    assert BrowDrive.of_scores(None, (), np.arange(5), 3.0, np.arange(2)) is None
+    assert BrowDrive.of_scores(np.zeros((5, 1)), ("jawOpen",), np.arange(5), 3.0, np.arange(2)) is None
+    scores = scores_over(30)
+    scores[:10] = np.nan
+    assert BrowDrive.of_scores(scores, NAMES, np.arange(30) / 25, 3.0, np.arange(10)) is None
