@@ -5,15 +5,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import shared
 from scipy.ndimage import gaussian_filter
 
 from faceanim.capture.headframe import landmark_names
+from faceanim.cli import main
+from faceanim.errors import InputError
 from faceanim.mpeg4 import Fapu
+from faceanim.speaker import read_speaker, write_speaker
 from faceanim.speaker.analysis import MAX_TRIANGLES, CloneAnalyser, analysis_mesh, pose_matrix
 from faceanim.speaker.appearance import Appearance, influence_of, posture_points
 from faceanim.speaker.colour import ColourModel
 from faceanim.speaker.lipraster import NumpyLipRaster, prefilter
 from faceanim.speaker.model import SpeakerModel
+from faceanim.speakertrack import frame_ranges, track_speaker
 
 LIP, SKIN, MOUTH = np.array([170.0, 55, 70]), np.array([210.0, 165, 135]), np.array([245.0, 240, 230])
 _OUTER = (61, 40, 37, 0, 267, 270, 291, 321, 314, 17, 84, 91)
@@ -253,3 +258,85 @@ def test_evaluations_never_exceed_the_cap(clone):
 
 def test_pose_matrix_of_no_motion_is_the_identity():
     assert np.allclose(pose_matrix(np.zeros(6)), np.eye(4))
+
+
+# ---- faceanim speaker track
+
+
+def test_the_frames_outside_are_named_as_runs():
+    assert frame_ranges([0, 1, 2, 7, 9, 10]) == "0-2, 7, 9-10"
+
+
+def test_track_refuses_a_model_without_textures_in_one_line_and_writes_nothing(tmp_path, capsys):
+    write_speaker(tmp_path / "bare.npz", synthetic_model())
+    (tmp_path / "v.mp4").write_bytes(b"not read: the model is refused first")
+    out = tmp_path / "out"
+    out.mkdir()
+    assert main(["speaker", "track", str(tmp_path / "v.mp4"), "--model", str(tmp_path / "bare.npz"),
+                 "-o", str(out / "p.csv"), "--fap", str(out / "p.fap"), "--overlay", str(out / "o.mp4")]) == 2
+    err = capsys.readouterr().err
+    assert "has no textures" in err and len(err.strip().splitlines()) == 1
+    assert list(out.iterdir()) == []
+    with pytest.raises(InputError, match="--max-evals 3"):
+        track_speaker(tmp_path / "v.mp4", out / "p.csv", model=tmp_path / "bare.npz", max_evals=3)
+
+
+@pytest.fixture(scope="module")
+def real(tmp_path_factory):
+    """A model with textures built on speech_man's first 87 frames, and its first 16 frames as a clip."""
+    pytest.importorskip("moderngl")
+    video = shared("videos", "speech_man.mp4")
+    from faceanim.capture.video import open_frames
+    from faceanim.speakerclone import make_textures
+    from faceanim.speech import build_speaker
+
+    folder = tmp_path_factory.mktemp("track")
+    model = folder / "man.npz"
+    build_speaker(video, model, frames="0:87")
+    make_textures(video, model, model=model, frames="0:87")
+    with open_frames(video) as source:
+        frames = [image for _, (_, image) in zip(range(16), source, strict=False)]
+    return folder, model, frames
+
+
+def _write_clip(path, frames, fps=25):
+    from faceanim.render.video import video_writer
+
+    height, width = frames[0].shape[:2]
+    with video_writer(path, fps, width, height) as write:
+        for image in frames:
+            write(image)
+
+
+def test_track_names_the_frames_where_the_mouth_leaves_and_writes_nothing(real, tmp_path):
+    folder, model, frames = real
+    shift = int(0.55 * frames[0].shape[0])
+    moved = [image if t < 8 else np.vstack([image[shift:], np.zeros_like(image[:shift])])
+             for t, image in enumerate(frames)]
+    _write_clip(tmp_path / "clip.mp4", moved)
+    out = tmp_path / "out"
+    out.mkdir()
+    with pytest.raises(InputError, match=r"the mouth leaves the frame \(or no face is found\) on frames 8-15 of 16"):
+        track_speaker(tmp_path / "clip.mp4", out / "p.csv", model=model, fap=out / "p.fap", overlay=out / "o.mp4")
+    assert list(out.iterdir()) == []
+
+
+def test_track_writes_parameters_faps_and_an_overlay_of_one_field(real, tmp_path, capsys):
+    av = pytest.importorskip("av")
+    folder, model, frames = real
+    _write_clip(tmp_path / "clip.mp4", frames[:8])
+    out = tmp_path / "p.csv"
+    assert main(["speaker", "track", str(tmp_path / "clip.mp4"), "--model", str(model), "-o", str(out),
+                 "--fap", str(tmp_path / "p.fap"), "--overlay", str(tmp_path / "o.mp4"), "--field", "top",
+                 "--max-evals", "40", "--motion-out", str(tmp_path / "m.csv")]) == 0
+    assert "8 frames" in capsys.readouterr().out
+    rows = out.read_text().splitlines()
+    assert rows[0] == "frame,timestamp," + ",".join(read_speaker(model).parameter_names) and len(rows) == 9
+    from faceanim.mpeg4.fapfile import read_fap
+    from faceanim.speakerclone import read_motion_csv, read_parameters_csv
+
+    assert len(read_fap(tmp_path / "p.fap")) == 8
+    assert read_parameters_csv(out, 6).shape == (8, 6) and read_motion_csv(tmp_path / "m.csv").shape == (8, 6)
+    with av.open(str(tmp_path / "o.mp4")) as container:
+        shapes = [f.to_ndarray(format="rgb24").shape for f in container.decode(video=0)]
+    assert len(shapes) == 8 and shapes[0][0] == frames[0].shape[0] // 2  # one field: half the rows

@@ -239,14 +239,15 @@ class GlLipRaster(_Raster):
 
         xy, w = self._check(xy, weights)
         self._data[:, :2] = xy
-        self._vbo.write(self._data.tobytes())
-        self._program["weights"].value = tuple(float(v) for v in w) + (0.0,) * (8 - len(w))
-        self._fbo.use()
-        self._ctx.viewport = (0, 0, self.width, self.height)
-        self._fbo.clear(self.background, 0.0, 0.0, 0.0)
-        self._texture.use(0)
-        self._vao.render(moderngl.TRIANGLES)
-        raw = np.frombuffer(self._fbo.read(components=1, dtype="f4", alignment=1), dtype=np.float32)
+        with self._ctx:  # this context made current (another one, a clone renderer's, may be open)
+            self._vbo.write(self._data.tobytes())
+            self._program["weights"].value = tuple(float(v) for v in w) + (0.0,) * (8 - len(w))
+            self._fbo.use()
+            self._ctx.viewport = (0, 0, self.width, self.height)
+            self._fbo.clear(self.background, 0.0, 0.0, 0.0)
+            self._texture.use(0)
+            self._vao.render(moderngl.TRIANGLES)
+            raw = np.frombuffer(self._fbo.read(components=1, dtype="f4", alignment=1), dtype=np.float32)
         return raw.reshape(self.height, self.width)[::-1].copy()  # GL's first row is the bottom
 
     def close(self):
