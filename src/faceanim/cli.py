@@ -174,6 +174,28 @@ def _parser() -> argparse.ArgumentParser:
                                                                 "output's")
     p.add_argument("--wireframe", action="store_true", help="draw the mesh's edges over the clone")
     p.add_argument("-o", "--output", required=True, metavar="OUT.mp4")
+    p = speaker.add_parser("track", help="a video's parameters by analysis by synthesis with the clone",
+                           description="Analyse VIDEO with the speaker's clone (a model with textures): per frame, the "
+                                       "clone's lip-probability image over the mouth is compared with the frame's, and "
+                                       "the articulatory parameters (with --rigid the head's motion too) move by the "
+                                       "simplex method from the previous frame's answer.")
+    p.add_argument("video", metavar="VIDEO")
+    p.add_argument("--model", required=True, metavar="SPEAKER.npz", help="a speaker model with textures "
+                                                                         "(faceanim speaker textures)")
+    p.add_argument("-o", "--output", required=True, metavar="P.csv",
+                   help="the parameters per frame (the columns of faceanim speaker analyse --params-csv)")
+    p.add_argument("--fap", metavar="OUT.fap", help="also write the FAPs the parameters give through the model")
+    p.add_argument("--overlay", metavar="OVERLAY.mp4", help="also draw the analysed clone's wireframe on the frames")
+    p.add_argument("--motion-out", metavar="MOTION.csv", help="also write the head's rigid motion per frame (as "
+                                                              "faceanim speaker render --motion reads it)")
+    p.add_argument("--max-evals", type=int, default=150, metavar="N",
+                   help="the most evaluations of the difference per frame (default 150)")
+    p.add_argument("--rigid", action="store_true", help="also analyse the head's rigid motion (6 more parameters, "
+                                                        "a correction of the tracker's pose)")
+    p.add_argument("--field", choices=("top", "bottom"), help="interlaced footage: analyse one field's rows only")
+    p.add_argument("--raster", choices=("numpy", "gl"), default="numpy",
+                   help="the lip-probability renderer (default numpy; see benchmarks/results/clone_tracking.md)")
+    _capture_arguments(p, image=False)
 
     p = commands.add_parser("avatar", help="a textured 3D face from a portrait",
                             description="Make an animatable 3D face from a portrait photo: the tracker's face "
@@ -476,6 +498,17 @@ def _run(args, progress) -> str:
                                               camera=args.camera, background=args.background,
                                               wireframe=args.wireframe, progress=progress)
             return f"wrote {args.output}: {count} frames"
+        if args.speaker_command == "track":
+            from .speakertrack import track_speaker
+
+            tracked = track_speaker(args.video, args.output, model=args.model, fap=args.fap, overlay=args.overlay,
+                                    motion_out=args.motion_out, max_evals=args.max_evals, rigid=args.rigid,
+                                    field=args.field, raster=args.raster, neutral=args.neutral,
+                                    smoothing=not args.no_filter, progress=progress)
+            T = len(tracked.parameters)
+            rate = T / max(tracked.seconds, 1e-9)
+            return (f"wrote {args.output}: {T} frames, {tracked.parameters.shape[1]} parameters, median "
+                    f"{int(sorted(tracked.evaluations)[T // 2])} evaluations a frame, {rate:.1f} frames/s analysed")
         stream, parameters, outside = speech.analyse_speech(
             args.video, args.output, model=args.model, params_csv=args.params_csv, neutral=args.neutral,
             smoothing=not args.no_filter, progress=progress)
