@@ -12,11 +12,16 @@ used (so a parameter reads in standard deviations, and the interpretation's ridg
   on it, so the jaw's vector carries the lips the jaw carries. Parameters beyond these six are the
   principal components of what is left.
 
-``benchmarks/speaker_model.py`` measures both on frames held out of the fit (alternate 2-second blocks
-of the shared speech clips). With 6 parameters PCA explains a little more of the points' variance
-(median 89.6% against 89.0%), but the guided model decodes the held-out frames' tracked FAPs closer
-(3 draws of 4, from all 30 FAPs and from the 8 of the ICP figure): its parameters are read from the
-feature points the FAPs measure, where PCA's also serve the jaw line and cheeks. Guided is the default.
+``benchmarks/speaker_model.py`` measures both on frames held out of the fit (6 contiguous blocks of
+each shared speech clip, one held out at a time; 10 reporting draws). With 6 parameters they explain
+about as much of the held-out lips' and jaw's variance (medians 85.9% guided, 84.3% PCA about the
+block's own mean; 93.6% and 93.8% about the model's rest), but the guided model decodes the
+held-out frames' tracked FAPs closer in 7 and 8 draws of 10 (from all 34 FAPs and from the 8 of the ICP
+figure): its parameters are read from the feature points the FAPs measure, where PCA's also serve
+the jaw line and cheeks. Guided is the default.
+
+Each model also measures how its parameters persist from one frame to the next over the frames it
+was built on (:func:`persistence`), the temporal prior of its interpretation.
 """
 
 from __future__ import annotations

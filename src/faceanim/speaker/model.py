@@ -40,7 +40,7 @@ __all__ = ["SpeakerModel", "DEFAULT_RIDGE", "fap_measurement"]
 
 # The ridge of the interpretation, in cm^2: the parameters have unit variance over the frames the model
 # was built on, so this is, as a prior, the squared error (here 0.3 mm) a received FAP's point may carry.
-# Small beside a frame of 30 FAPs; enough to hold a parameter that a few FAPs barely see. Chosen on the
+# Small beside a frame of 34 FAPs; enough to hold a parameter that a few FAPs barely see. Chosen on the
 # talking clips d12 and d20 (held-out FAP error from 8 FAPs lowest at 1e-3 to 3e-3 cm^2), not on the
 # speech clips the benchmarks report.
 DEFAULT_RIDGE = 1e-3
