@@ -400,3 +400,38 @@ def test_decompress_through_a_speaker_model_fills_in_the_faps_not_sent(tmp_path,
     # and through the model's temporal prior, which a model file of version 2 carries
     expected = read_speaker(tmp_path / "s.npz").regularise(read_fba(tmp_path / "s.fba"), quant=1.0, temporal=True)
     np.testing.assert_allclose(back.values, np.round(expected.values), atol=1)
+
+
+def test_decompress_through_a_version_1_speaker_model_decodes_frame_by_frame(tmp_path):
+    """A model file from before the temporal prior (version 1, no persistence) still decodes a stream,
+    frame by frame, as it did."""
+    from dataclasses import replace
+
+    from faceanim.capture.headframe import landmark_names
+    from faceanim.capture.metric import canonical_face
+    from faceanim.compression import fap_decompress
+    from faceanim.motion import Motion
+    from faceanim.mpeg4 import Fapu
+    from faceanim.mpeg4.fapcoder import read_fba, write_fba
+    from faceanim.speaker import build_model, mobile_names, read_speaker, write_speaker
+
+    rng = np.random.default_rng(1)
+    neutral = canonical_face().vertices
+    names = landmark_names(len(neutral))
+    fapu = Fapu(irisd0=1.0, es0=6.4, ens0=4.4, mns0=2.0, mw0=5.2)
+    index = np.array([names.index(n) for n in mobile_names(Motion(names, neutral, np.zeros((1, len(names), 3)),
+                                                                   np.eye(4)[None], 25.0, fapu))])
+    d = np.zeros((100, len(names), 3))
+    d[:, index] = np.einsum("tk,kpc->tpc", rng.normal(size=(100, 6)), rng.normal(scale=0.1, size=(6, len(index), 3)))
+    model = build_model(Motion(names, neutral, d, np.tile(np.eye(4), (100, 1, 1)), 25.0, fapu), parameters=6)
+    write_speaker(tmp_path / "old.npz", replace(model, persistence=None))
+    with np.load(tmp_path / "old.npz") as archive:
+        assert int(archive["version"]) == 1
+    write_fba(tmp_path / "s.fba", model.to_faps(rng.normal(size=(30, 6)), fps=25.0), quant=2.0,
+              faps=[3, 14, 16, 17, 51, 52, 53, 54])
+    back = fap_decompress(tmp_path / "s.fba", tmp_path / "out.fap", speaker=tmp_path / "old.npz")
+    expected = read_speaker(tmp_path / "old.npz").regularise(read_fba(tmp_path / "s.fba"), quant=2.0)
+    np.testing.assert_allclose(back.values, expected.values)
+    with pytest.raises(InputError, match="no temporal prior"):
+        fap_decompress(tmp_path / "s.fba", tmp_path / "out2.fap", speaker=tmp_path / "old.npz", temporal=True)
+    assert not (tmp_path / "out2.fap").exists()
