@@ -11,7 +11,7 @@ fresh process under ``/usr/bin/time``, which reports its peak resident memory:
 - ``faceanim animate VIDEO --target ICT -o x.glb``
 - ``faceanim aus VIDEO -o x.csv``
 - ``faceanim decode x.fap --target ICT -o y.glb``
-- ``batch task``: what one Ray task of ``faceanim batch --do encode,aus,animate --target ICT`` runs for
+- ``batch task``: what one Ray task of ``faceanim batch --do encode,aus,blendshapes,animate --target ICT`` runs for
   a video (:func:`faceanim.dataset.process_video`), in a process of its own (a Ray worker's own
   footprint, about 0.1 GB, comes on top)
 
@@ -76,8 +76,8 @@ from faceanim.dataset import process_video
 from faceanim.inputs import load_target
 from faceanim.manifest import Video
 video, folder, target = sys.argv[1:4]
-result = process_video(Video(Path(video), Path(video).stem), ("encode", "aus", "animate"), Path(folder), force=True,
-                       target=load_target(target))
+result = process_video(Video(Path(video), Path(video).stem), ("encode", "aus", "blendshapes", "animate"), Path(folder),
+                       force=True, target=load_target(target))
 if result.status != "done":
     raise SystemExit(result.error)
 """
