@@ -160,8 +160,9 @@ def test_the_mix_follows_the_weights():
 
 def test_prefilter_keeps_the_mean_and_a_ramp():
     ramp = np.tile(np.arange(32, dtype=np.float32), (32, 1))[None]
-    filtered = prefilter(ramp, 6.0)
-    assert np.allclose(filtered[0, :, 8:24], ramp[0, :, 8:24], atol=1e-4)  # linear: unchanged away from edges
+    filtered = prefilter(ramp, 4.5)  # blurred, then averaged over blocks of 3 texels
+    assert filtered.shape == (1, 10, 10)
+    assert np.allclose(filtered[0, :, 2:8], 3 * np.arange(2, 8) + 1, atol=1e-3)  # linear: the blocks' centres
     assert np.array_equal(prefilter(ramp, 0.5), ramp)  # under a texel: bilinear reading is the filter
 
 
@@ -340,3 +341,11 @@ def test_track_writes_parameters_faps_and_an_overlay_of_one_field(real, tmp_path
     with av.open(str(tmp_path / "o.mp4")) as container:
         shapes = [f.to_ndarray(format="rgb24").shape for f in container.decode(video=0)]
     assert len(shapes) == 8 and shapes[0][0] == frames[0].shape[0] // 2  # one field: half the rows
+
+
+def test_the_analysers_weights_are_the_appearances(clone):
+    model, appearance = clone
+    with _analyser(model, appearance) as analyser:
+        for a in (np.zeros(6), appearance.key_parameters[1], _sequence(3)[2]):
+            points = posture_points(model, a[None])[0]
+            assert np.allclose(analyser.weights(a), appearance.weights(points), atol=1e-9)

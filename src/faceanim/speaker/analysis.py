@@ -215,11 +215,13 @@ class CloneAnalyser:
     photometric : bool
         Compare after fitting the clone's probabilities to the frame's by a gain and an offset
         (default); False: the plain mean squared difference.
+    blur : float
+        Compare both images blurred by a Gaussian of this many box pixels (0: not blurred).
     """
 
     def __init__(self, model: SpeakerModel, appearance, *, width: int, height: int, mouth_width: float,
                  max_evals: int = DEFAULT_MAX_EVALS, rigid: bool = False, raster: str = "numpy", field=None,
-                 camera=None, prior: float = DEFAULT_PRIOR, photometric: bool = True):
+                 camera=None, prior: float = DEFAULT_PRIOR, photometric: bool = True, blur: float = 0.0):
         if raster not in RASTERS:
             raise ValueError(f"raster must be one of {', '.join(RASTERS)}, got {raster!r}")
         if field not in (None, "top", "bottom"):
@@ -231,7 +233,7 @@ class CloneAnalyser:
         self.model, self.appearance = model, appearance
         self.mesh = analysis_mesh(model)
         self.rigid, self.max_evals, self.field, self.prior = bool(rigid), int(max_evals), field, float(prior)
-        self.photometric = bool(photometric)
+        self.photometric, self.blur = bool(photometric), float(blur)
         self.width, self.height = int(width), int(height)
         P = len(model.names)
         N = P + len(model.static_names)
@@ -241,6 +243,11 @@ class CloneAnalyser:
         self._sub_rest = self._rest[self.mesh.points]
         self._sub_basis = self._basis[:, self.mesh.points]
         self._centre = self._sub_rest[self.mesh.outer].mean(axis=0)
+        offsets = np.asarray(appearance.key_points, dtype=np.float64) - self._rest  # (Q, N, 3): c_q
+        flat = self._basis.reshape(K, -1)
+        self._gram = flat @ flat.T / N
+        self._key_cross = offsets.reshape(len(offsets), -1) @ flat.T / N
+        self._key_square = (offsets.reshape(len(offsets), -1) ** 2).sum(axis=1) / N
         self._camera = as_array(appearance.camera if camera is None else camera, "camera", shape=(3, 4))
         self._rows = 0.5 if field else 1.0
         # the box: its size fixed for the video, its place following the mouth
@@ -252,9 +259,15 @@ class CloneAnalyser:
         S = textures.shape[-1]
         corners = uv[self.mesh.outer]
         texels = S * np.ptp(corners[:, 0]) / max(mouth_width / self.factor, 1e-9)  # texels per box pixel
+        filtered = prefilter(textures, texels)
+        # only the texels under the analysis mesh (and a margin): the part of the textures read
+        s = filtered.shape[-1]
+        lo = np.maximum(np.floor(uv.min(axis=0) * s) - 2, 0).astype(int)
+        hi = np.minimum(np.ceil(uv.max(axis=0) * s) + 2, s).astype(int)
+        part = np.ascontiguousarray(filtered[:, lo[1]:hi[1], lo[0]:hi[0]])
+        uv = (uv * s - lo) / (hi - lo)
         kind = NumpyLipRaster if raster == "numpy" else GlLipRaster
-        self.raster = kind(self.mesh.triangles, uv, prefilter(textures, texels),
-                           width=self.box_width, height=self.box_height)
+        self.raster = kind(self.mesh.triangles, uv, part, width=self.box_width, height=self.box_height)
         self.colour = appearance.colour
 
     # ---- geometry
@@ -299,11 +312,21 @@ class CloneAnalyser:
         probability = np.asarray(self.colour.probability(np.ascontiguousarray(crop)), dtype=np.float32)
         return probability.reshape(self.box_height, f, self.box_width, f).mean(axis=(1, 3))
 
+    def weights(self, parameters) -> np.ndarray:
+        """``(Q,)`` the appearance's blending weights at ``parameters (K,)``: ``Appearance.weights`` of
+        the posture's points, its RMS distances to the key postures written as a quadratic form of the
+        parameters (``|c_q - B a|^2 / N``), a K x K product instead of N points."""
+        from .appearance import blend_weights
+
+        a = np.asarray(parameters, dtype=np.float64)
+        square = self._key_square - 2.0 * self._key_cross @ a + a @ self._gram @ a
+        return blend_weights(np.sqrt(np.maximum(square, 0.0)), self.appearance.influence)
+
     def clone_image(self, parameters, pose, origin) -> np.ndarray:
         """``(box_height, box_width) float32``: the clone's lip probability over the box at ``origin``."""
-        full = self.full_points(parameters)
-        xy = (self.pixels(full[self.mesh.points], pose) - origin) / self.factor
-        return self.raster(xy, self.appearance.weights(full))
+        points = self._sub_rest + np.tensordot(parameters, self._sub_basis, axes=1)
+        xy = (self.pixels(points, pose) - origin) / self.factor
+        return self.raster(xy, self.weights(parameters))
 
     def lip_mask(self, parameters, pose, origin, shape) -> np.ndarray:
         """(h, w) bool: the frame's pixels (from ``origin``, ``shape``) between the clone's outer and
@@ -339,6 +362,10 @@ class CloneAnalyser:
         the frame's scale: ``g * clone + b`` with the least-squares gain ``g >= 0`` and offset ``b``. The
         textures' probabilities (learnt on the key frames, read through a blur) and the frame's (the
         adapted colour model, at the frame's sharpness) differ in contrast; the shape is what counts."""
+        if self.blur:
+            import cv2
+
+            clone = cv2.GaussianBlur(clone, (0, 0), self.blur)
         c = clone.reshape(-1) - clone.mean()
         t = target.reshape(-1) - target.mean()
         if not self.photometric:
@@ -368,6 +395,10 @@ class CloneAnalyser:
         if not self.box_inside(origin):
             raise InputError("the mouth leaves the frame")
         target = self.frame_image(image, origin)
+        if self.blur:
+            import cv2
+
+            target = cv2.GaussianBlur(target, (0, 0), self.blur)
         count = 0
         best = [np.inf, None]
 

@@ -29,14 +29,18 @@ RASTERS = ("numpy", "gl")
 
 
 def prefilter(textures, footprint: float) -> np.ndarray:
-    """``textures (Q, S, S)`` as a box pixel sees them: each texel the average over about
-    ``footprint x footprint`` texels around it (a Gaussian of the same spread, ``footprint / sqrt(12)``
-    texels), so that reading the texture at a box pixel's centre gives the pixel's mean, as averaging
-    the frame's pixels over the box's does; ``(Q, S, S)`` float32.
+    """``textures (Q, S, S)`` as a box pixel sees them, ``footprint`` texels wide: blurred by a
+    Gaussian of the same spread (``footprint / sqrt(12)`` texels), so that reading the texture at a box
+    pixel's centre gives about the pixel's mean, as averaging the frame's pixels over the box does; then
+    averaged over blocks of ``k = round(footprint / 1.5)`` texels (``(Q, S // k, S // k)`` float32),
+    about 1.5 texels a box pixel: small enough to mix and read quickly, fine enough to read bilinearly.
 
-    >>> t = np.zeros((1, 9, 9), np.float32); t[0, 4, 4] = 1
-    >>> bool(abs(prefilter(t, 3.0).sum() - 1) < 1e-3), float(prefilter(t, 1.0)[0, 4, 4])
-    (True, 1.0)
+    >>> t = np.zeros((1, 8, 8), np.float32); t[0, 4, 4] = 1
+    >>> small = prefilter(t, 3.0)
+    >>> small.shape, bool(abs(small.sum() * 4 - 1) < 1e-2)  # the mean kept (4 texels a block)
+    ((1, 4, 4), True)
+    >>> bool(np.array_equal(prefilter(t, 1.0), t))
+    True
     """
     from scipy.ndimage import gaussian_filter
 
@@ -44,7 +48,12 @@ def prefilter(textures, footprint: float) -> np.ndarray:
     sigma = float(footprint) / np.sqrt(12.0)
     if sigma < 0.5:  # under a texel: bilinear reading is the filter
         return np.ascontiguousarray(t)
-    return np.ascontiguousarray(gaussian_filter(t, sigma=(0, sigma, sigma), mode="nearest"))
+    t = gaussian_filter(t, sigma=(0, sigma, sigma), mode="nearest")
+    k = max(1, int(round(footprint / 1.5)))
+    if k > 1:
+        Q, S, R = t.shape
+        t = t[:, :S // k * k, :R // k * k].reshape(Q, S // k, k, R // k, k).mean(axis=(2, 4))
+    return np.ascontiguousarray(t, dtype=np.float32)
 
 
 class _Raster:
@@ -96,73 +105,104 @@ class NumpyLipRaster(_Raster):
     def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0):
         super().__init__(triangles, uv, textures, width=width, height=height, background=background)
         Q, s, r = self.textures.shape
-        self._texels = np.ascontiguousarray(self.textures.reshape(Q, -1).T)  # (s*r, Q): one gather, every key
+        self._flat = np.ascontiguousarray(self.textures.reshape(Q, -1))  # (Q, s*r): mixed once a call
         self._size = (s, r)
+        self._uv_corners = self.uv[self.triangles]  # (F, 3, 2)
+
+    def _affine(self, xy) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per triangle at vertices ``xy``: its corners ``(F, 3, 2)``, the barycentric coordinates
+        ``l1, l2`` as affine functions of a point, ``(F, 6)`` (``l1 = k0 x + k1 y + k2``, ``l2 = k3 x +
+        k4 y + k5``), and whether it has an area ``(F,)``."""
+        corners = np.asarray(xy, dtype=np.float64)[self.triangles]
+        a = corners[:, 0]
+        e1, e2 = corners[:, 1] - a, corners[:, 2] - a
+        det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+        solid = np.abs(det) > 1e-12  # a degenerate triangle covers nothing
+        inv = 1.0 / np.where(solid, det, 1.0)
+        coef = np.stack([e2[:, 1] * inv, -e2[:, 0] * inv, (e2[:, 0] * a[:, 1] - e2[:, 1] * a[:, 0]) * inv,
+                         -e1[:, 1] * inv, e1[:, 0] * inv, (e1[:, 1] * a[:, 0] - e1[:, 0] * a[:, 1]) * inv], axis=1)
+        return corners, coef, solid
+
+    def _spans(self, corners, solid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(triangle (n,), px (n,), py (n,))``: the pixels whose centres each triangle covers, found
+        row by row (each row's span between the triangle's edges), so the candidates are about the
+        pixels covered, not the triangles' bounding boxes."""
+        W, H = self.width, self.height
+        ys = corners[:, :, 1]
+        top = np.maximum(np.ceil(ys.min(axis=1) - 0.5), 0).astype(np.int64)
+        bottom = np.minimum(np.floor(ys.max(axis=1) - 0.5), H - 1).astype(np.int64)
+        rows = np.where(solid, np.maximum(bottom - top + 1, 0), 0)
+        total = int(rows.sum())
+        if total == 0:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
+        triangle = np.repeat(np.arange(len(rows)), rows)
+        row = top[triangle] + np.arange(total) - np.repeat(np.cumsum(rows) - rows, rows)
+        y = row + 0.5
+        p = corners[triangle]  # (m, 3, 2)
+        q = np.roll(p, -1, axis=1)  # each edge's other end
+        py, qy = p[:, :, 1], q[:, :, 1]
+        crosses = (np.minimum(py, qy) <= y[:, None]) & (np.maximum(py, qy) >= y[:, None]) & (py != qy)
+        t = (y[:, None] - py) / np.where(py != qy, qy - py, 1.0)
+        x = p[:, :, 0] + t * (q[:, :, 0] - p[:, :, 0])
+        left = np.where(crosses, x, np.inf).min(axis=1)
+        right = np.where(crosses, x, -np.inf).max(axis=1)
+        first = np.maximum(np.ceil(left - 0.5 - 1e-9), 0).astype(np.int64)
+        last = np.minimum(np.floor(right - 0.5 + 1e-9), W - 1).astype(np.int64)
+        count = np.maximum(last - first + 1, 0)
+        n = int(count.sum())
+        pick = np.repeat(np.arange(total), count)
+        px = first[pick] + np.arange(n) - np.repeat(np.cumsum(count) - count, count)
+        return triangle[pick], px, row[pick]
 
     def coverage(self, xy) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The pixels the triangles cover at vertices ``xy (V, 2)``: ``(pixel (n,) flat index,
         triangle (n,), barycentric (n, 3))``; a pixel on a shared edge may appear twice."""
-        xy = np.asarray(xy, dtype=np.float64)
-        W, H = self.width, self.height
-        corners = xy[self.triangles]  # (F, 3, 2)
-        lo = np.ceil(corners.min(axis=1) - 0.5)
-        hi = np.floor(corners.max(axis=1) - 0.5)
-        lo = np.maximum(lo, 0).astype(np.int64)
-        hi = np.minimum(hi, [W - 1, H - 1]).astype(np.int64)
-        span = np.maximum(hi - lo + 1, 0)
-        count = span[:, 0] * span[:, 1]
-        a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
-        e1, e2 = b - a, c - a
-        det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-        count[np.abs(det) < 1e-12] = 0  # a degenerate triangle covers nothing
-        total = int(count.sum())
-        if total == 0:
-            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3))
-        triangle = np.repeat(np.arange(len(count)), count)
-        local = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
-        columns = span[triangle, 0]
-        px = lo[triangle, 0] + local % columns
-        py = lo[triangle, 1] + local // columns
-        # barycentric coordinates as affine functions of the pixel centre, one row of 6 numbers a triangle
-        inv = 1.0 / np.where(det == 0, 1.0, det)
-        coef = np.stack([e2[:, 1] * inv, -e2[:, 0] * inv, (e2[:, 0] * a[:, 1] - e2[:, 1] * a[:, 0]) * inv,
-                         -e1[:, 1] * inv, e1[:, 0] * inv, (e1[:, 1] * a[:, 0] - e1[:, 0] * a[:, 1]) * inv], axis=1)
+        corners, coef, solid = self._affine(xy)
+        triangle, px, py = self._spans(corners, solid)
         k = coef[triangle]
         x, y = px + 0.5, py + 0.5
         l1 = k[:, 0] * x + k[:, 1] * y + k[:, 2]
         l2 = k[:, 3] * x + k[:, 4] * y + k[:, 5]
-        l0 = 1.0 - l1 - l2
-        eps = -1e-9
-        inside = (l1 >= eps) & (l2 >= eps) & (l0 >= eps)
-        return (py * W + px)[inside], triangle[inside], np.stack([l0, l1, l2], axis=1)[inside]
+        return py * self.width + px, triangle, np.stack([1.0 - l1 - l2, l1, l2], axis=1)
 
     def __call__(self, xy, weights) -> np.ndarray:
         """``(height, width) float32``: the mix ``sum_q weights[q] * textures[q]`` drawn on the mesh at
         vertices ``xy (V, 2)`` (box pixels)."""
         xy, w = self._check(xy, weights)
-        pixel, triangle, bary = self.coverage(xy)
+        corners, coef, solid = self._affine(xy)
+        triangle, px, py = self._spans(corners, solid)
         image = np.full(self.width * self.height, self.background, dtype=np.float32)
-        if len(pixel):
-            uv = np.einsum("nk,nkc->nc", bary, self.uv[self.triangles[triangle]])
-            image[pixel] = self.sample(uv) @ w
+        if len(triangle):
+            # u and v as affine functions of the pixel centre, per triangle: uv_a + l1 (uv_b - uv_a) + l2 (uv_c - uv_a)
+            c = self._uv_corners
+            d1, d2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]  # (F, 2)
+            au = d1[:, :, None] * coef[:, None, 0:3] + d2[:, :, None] * coef[:, None, 3:6]  # (F, 2, 3)
+            au[:, :, 2] += c[:, 0]
+            k = au.reshape(-1, 6)[triangle]
+            x, y = px + 0.5, py + 0.5
+            uv = np.stack([k[:, 0] * x + k[:, 1] * y + k[:, 2], k[:, 3] * x + k[:, 4] * y + k[:, 5]], axis=1)
+            image[py * self.width + px] = self._bilinear(w @ self._flat, uv)
         return image.reshape(self.height, self.width)
 
-    def sample(self, uv) -> np.ndarray:
-        """``(n, Q) float32``: every texture read bilinearly at ``uv (n, 2)`` (texel centres at
+    def _bilinear(self, texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
+        """``(n,)``: the flat ``texture (s*r,)`` read bilinearly at ``uv (n, 2)`` (texel centres at
         ``(j + 0.5) / s``, clamped at the edges, as GL's linear filter with clamp-to-edge)."""
         s, r = self._size
         fx = np.clip(uv[:, 0] * r - 0.5, 0.0, r - 1.0)
         fy = np.clip(uv[:, 1] * s - 0.5, 0.0, s - 1.0)
-        x0 = np.minimum(fx.astype(np.int64), r - 2) if r > 1 else np.zeros(len(fx), np.int64)
-        y0 = np.minimum(fy.astype(np.int64), s - 2) if s > 1 else np.zeros(len(fy), np.int64)
-        tx = (fx - x0).astype(np.float32)[:, None]
-        ty = (fy - y0).astype(np.float32)[:, None]
+        x0 = np.minimum(fx.astype(np.int64), max(r - 2, 0))
+        y0 = np.minimum(fy.astype(np.int64), max(s - 2, 0))
+        tx, ty = fx - x0, fy - y0
         dx, dy = (1 if r > 1 else 0), (r if s > 1 else 0)
         at = y0 * r + x0
-        t = self._texels
-        top = t[at] * (1 - tx) + t[at + dx] * tx
-        bottom = t[at + dy] * (1 - tx) + t[at + dy + dx] * tx
+        top = texture[at] * (1 - tx) + texture[at + dx] * tx
+        bottom = texture[at + dy] * (1 - tx) + texture[at + dy + dx] * tx
         return top * (1 - ty) + bottom * ty
+
+    def sample(self, uv) -> np.ndarray:
+        """``(n, Q)``: every texture read bilinearly at ``uv (n, 2)`` (see :meth:`_bilinear`)."""
+        uv = np.asarray(uv, dtype=np.float64)
+        return np.stack([self._bilinear(t, uv) for t in self._flat], axis=1)
 
     def close(self):
         pass
