@@ -400,6 +400,11 @@ def test_decompress_through_a_speaker_model_fills_in_the_faps_not_sent(tmp_path,
     # and through the model's temporal prior, which a model file of version 2 carries
     expected = read_speaker(tmp_path / "s.npz").regularise(read_fba(tmp_path / "s.fba"), quant=1.0, temporal=True)
     np.testing.assert_allclose(back.values, np.round(expected.values), atol=1)
+    code, out, err = run_cli(capsys, "fap-decompress", tmp_path / "s.fba", "-o", tmp_path / "alone.fap", "--speaker",
+                             tmp_path / "s.npz", "--frame-by-frame")
+    assert code == 0, err
+    expected = read_speaker(tmp_path / "s.npz").regularise(read_fba(tmp_path / "s.fba"), quant=1.0)
+    np.testing.assert_allclose(read_fap(tmp_path / "alone.fap").values, np.round(expected.values), atol=1)
 
 
 def test_decompress_through_a_version_1_speaker_model_decodes_frame_by_frame(tmp_path):

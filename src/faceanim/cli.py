@@ -323,10 +323,14 @@ def _parser() -> argparse.ArgumentParser:
     p = commands.add_parser("fap-decompress", help="decode a .fba back into a .fap",
                             description="Decode IN.fba (faceanim fap-compress) into a .fap; with --speaker, the "
                                         "FAPs are interpreted through a speaker model (regularised, the FAPs not "
-                                        "sent filled in).")
+                                        "sent filled in), each frame with the frames before it through the model's "
+                                        "temporal prior.")
     p.add_argument("source", metavar="IN.fba")
     p.add_argument("-o", "--output", required=True, metavar="OUT.fap")
     p.add_argument("--speaker", metavar="SPEAKER.npz", help="a speaker model (faceanim speaker build)")
+    p.add_argument("--frame-by-frame", action="store_true",
+                   help="with --speaker: interpret each frame alone, without the model's temporal prior (a model "
+                        "file of version 1 has none and is always read so)")
 
     p = commands.add_parser("fap-info", help="summarise a .fap file",
                             description="Frames, fps, active FAPs with their ranges, and values outside MPEG-4's.")
@@ -577,7 +581,8 @@ def _run(args, progress) -> str:
     if args.command == "fap-decompress":
         from .compression import fap_decompress
 
-        stream = fap_decompress(args.source, args.output, speaker=args.speaker)
+        stream = fap_decompress(args.source, args.output, speaker=args.speaker,
+                                temporal=False if args.frame_by_frame else None)
         active = int(stream.mask.any(axis=0).sum())
         return f"wrote {args.output}: {len(stream)} frames, {active} FAPs" + (
             f", interpreted through {args.speaker}" if args.speaker else "")
