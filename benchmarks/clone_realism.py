@@ -76,7 +76,7 @@ def scores(real: np.ndarray, made: np.ndarray) -> tuple[float, float]:
             structural_similarity(real, made, channel_axis=2, data_range=255))
 
 
-def clip_figures(clip: str, stills: list) -> dict:
+def clip_figures(clip: str, stills: list | None, *, speed: bool = True) -> dict:
     from PIL import Image
 
     from faceanim.capture.track import track_video
@@ -110,15 +110,15 @@ def clip_figures(clip: str, stills: list) -> dict:
                 image = renderer.render(parameters[t], fit.rigid[t], background=real)
                 made[name] = image[rows, columns]
                 results[name].append(scores(real[rows, columns], made[name]))
-            if t in keep:
+            if t in keep and stills is not None:
                 strip = np.concatenate([real[rows, columns], made["blend"], made["single"]], axis=1)
                 still = Image.fromarray(strip)
                 still = still.resize((3 * still.width, 3 * still.height), Image.Resampling.LANCZOS)
                 name = f"clone_{clip}_{t}.png"
                 still.save(RESULTS / name)
                 stills.append(name)
-        speed = {}
-        for blend in ("shader", "cpu"):
+        rates_of = {}
+        for blend in ("shader", "cpu") if speed else ():
             with CloneRenderer(model, appearance, width=SPEED_SIZE, height=SPEED_SIZE, blend=blend) as small:
                 background = np.full((SPEED_SIZE, SPEED_SIZE, 3), 90, dtype=np.uint8)
                 small.render(parameters[held[0]], fit.rigid[held[0]], background=background)  # warm-up
@@ -129,12 +129,12 @@ def clip_figures(clip: str, stills: list) -> dict:
                         t = held[i % len(held)]
                         small.render(parameters[t], fit.rigid[t], background=background)
                     rates.append(FRAMES_PER_RUN / (time.perf_counter() - start))
-                speed[blend] = rates
+                rates_of[blend] = rates
     used = np.unique(appearance.triangles)
     P = len(model.names)
     weights = appearance.weights(np.concatenate([model.points(parameters[held]), np.broadcast_to(
         model.static_points, (len(held), *model.static_points.shape))], axis=1))
-    return {"clip": clip, "frames": T, "build": cut, "held": len(held), "results": results, "speed": speed,
+    return {"clip": clip, "frames": T, "build": cut, "held": len(held), "results": results, "speed": rates_of,
             "mobile": int((used < P).sum()), "static": int((used >= P).sum()), "triangles": len(appearance.triangles),
             "textures": appearance.textures.shape, "camera": fit, "keys": appearance.key_frames,
             "weights": weights, "model_triangles": len(model.triangles), "model_static": len(model.static_names)}

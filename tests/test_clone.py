@@ -167,7 +167,7 @@ def test_blending_weights_sum_to_one_are_one_hot_at_a_key_and_continuous(clone):
 def test_blend_weights_handle_coincident_keys_and_influence():
     assert np.allclose(blend_weights([0.0, 0.0, 1.0], [1.0, 1.0, 1.0]), [0.5, 0.5, 0.0])
     wide = blend_weights([1.0, 1.0], [2.0, 1.0])
-    assert np.allclose(wide, [0.8, 0.2])
+    assert np.allclose(wide, [2 / 3, 1 / 3])
     keys = np.zeros((3, 4, 3))
     keys[1] += 1.0
     keys[2] += 3.0
@@ -362,3 +362,22 @@ def test_speaker_textures_and_render_on_a_real_clip(tmp_path, capsys):
     assert main(["speaker", "render", "--model", str(model), "--params", str(tmp_path / "p.csv"), "--motion",
                  str(tmp_path / "m.csv"), "--background", str(video), "-o", str(tmp_path / "r.mp4")]) == 0
     assert (tmp_path / "r.mp4").stat().st_size > 0
+
+
+def test_the_lips_of_a_frame_adapt_the_colour_model(clone):
+    from faceanim.speaker.texturing import lip_mask_frame
+
+    model, appearance, _, image = clone
+    points = posture_points(model, appearance.key_parameters[:1])[0]
+    lips = lip_mask_frame(appearance, points, appearance.key_rigid[0], 320, 320)
+    assert lips.sum() > 50
+    outer = np.zeros_like(lips)
+    from skimage.draw import polygon2mask
+
+    at = project(CAMERA, moved(points[appearance.lip_outer], appearance.key_rigid[0])) * 320 - 0.5
+    outer = polygon2mask(lips.shape, at[:, ::-1])
+    assert (lips <= outer).all()  # inside the outer contour, the opening left out
+    adapted = appearance.colour.adapted(image, lips)
+    p = adapted.probability(image)
+    inner, skin = lip_and_skin(lips)
+    assert p[inner].mean() > p[skin].mean() + 0.3

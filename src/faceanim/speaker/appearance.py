@@ -72,27 +72,30 @@ def posture_points(model, parameters) -> np.ndarray:
 def blend_weights(distances, influence) -> np.ndarray:
     """``(..., Q)`` blending weights of postures at ``distances (..., Q)`` from the key postures.
 
-    Inverse-square distance weighting, ``w_q ~ (c_q / d_q)^2``, written without division as
-    ``w_q = c_q^2 prod_{j != q} d_j^2 / sum_i c_i^2 prod_{j != i} d_j^2``: a polynomial ratio, smooth
-    everywhere, summing to 1, exactly one-hot where a posture is a key posture (``d_q = 0``), and
-    ``c_q`` (the influence) widening a key posture's share.
+    Inverse-distance weighting, ``w_q ~ c_q / d_q``, written without division as
+    ``w_q = c_q prod_{j != q} d_j / sum_i c_i prod_{j != i} d_j``: a ratio of products of distances,
+    continuous everywhere, summing to 1, exactly one-hot where a posture is a key posture (``d_q = 0``),
+    and ``c_q`` (the influence) widening a key posture's share. (The first power of the distance: on the
+    talking clips d12 and d20, not the speech clips the benchmark reports, it re-rendered held-out mouths
+    closer than the square, 24.1 and 25.0 dB against 23.7 and 25.0, SSIM 0.756 and 0.784 against 0.751
+    and 0.769, and the fourth power further still.)
 
     >>> blend_weights(np.array([0.0, 1.0, 2.0]), np.ones(3)).tolist()
     [1.0, 0.0, 0.0]
     >>> np.round(blend_weights(np.array([1.0, 1.0, 2.0]), np.ones(3)), 3).tolist()
-    [0.444, 0.444, 0.111]
+    [0.4, 0.4, 0.2]
     """
-    d2 = np.asarray(distances, dtype=np.float64) ** 2
-    c2 = np.asarray(influence, dtype=np.float64) ** 2
-    Q = d2.shape[-1]
-    scale = d2.max(axis=-1, keepdims=True)
-    d2 = d2 / np.where(scale > 0, scale, 1.0)  # products of Q - 1 distances kept near 1
-    others = np.stack([np.prod(np.delete(d2, q, axis=-1), axis=-1) for q in range(Q)], axis=-1)
-    numerator = c2 * others
+    d = np.asarray(distances, dtype=np.float64)
+    c = np.asarray(influence, dtype=np.float64)
+    Q = d.shape[-1]
+    scale = d.max(axis=-1, keepdims=True)
+    d = d / np.where(scale > 0, scale, 1.0)  # products of Q - 1 distances kept near 1
+    others = np.stack([np.prod(np.delete(d, q, axis=-1), axis=-1) for q in range(Q)], axis=-1)
+    numerator = c * others
     total = numerator.sum(axis=-1, keepdims=True)
     tied = total <= 0  # two key postures at once (coincident keys): share between those at distance 0
     if np.any(tied):
-        zero = (d2 == 0).astype(np.float64) * c2
+        zero = (d == 0).astype(np.float64) * c
         numerator = np.where(tied, zero, numerator)
         total = numerator.sum(axis=-1, keepdims=True)
     return numerator / total
