@@ -262,6 +262,7 @@ def test_an_au_csv_drives_au_and_arkit_names(tmp_path):
     np.testing.assert_allclose(animated, [[1.0, 0.0, 1.0], [0.5, 0.5, 0.5], [0.5, 0.5, 0.5]], atol=1e-6)
 
 
+@pytest.mark.filterwarnings("ignore:AU12")  # 1.5 is asked for: the weight is clipped to 1
 def test_express_frames_on_an_au_rig_plays_the_recipe_on_its_sliders(tmp_path):
     from faceanim.expressions import envelope
     from faceanim.generic import generic_target
@@ -334,3 +335,22 @@ def test_options_the_rig_route_cannot_honour_are_refused_before_work(rig, tmp_pa
         pipeline.animate(take, tmp_path / "out.glb", target_mesh=path, preview=tmp_path / "p.mp4")
     with pytest.raises(InputError, match="give --target"):
         pipeline.animate(take, tmp_path / "out.glb")
+
+
+def test_a_video_drives_the_rig_with_the_scores_fused(rig, tmp_path):
+    # The generic face's points carry the tracker's names: the video's motion reaches the rig's shapes,
+    # and the blink targets follow the Face Landmarker's scores.
+    pytest.importorskip("mediapipe", reason="needs faceanim[capture] to track the video")
+    from conftest import shared
+
+    from faceanim.mpeg4.fapfile import read_fap
+
+    video = shared("videos", "d18.mp4")
+    path, _, _ = rig
+    out, fap = tmp_path / "d18_rig.glb", tmp_path / "d18.fap"
+    assert main(["animate", str(video), "--target", str(path), "-o", str(out), "--fap", str(fap)]) == 0
+    channel, times, animated = _animated_weights(out)
+    assert channel.target.path == "weights" and len(times) == len(read_fap(fap))
+    assert animated.min() >= 0 and animated.max() <= 1
+    assert (animated[:, -1] == 0).all()  # "custom": no rig name, no curve
+    assert animated[:, :DRIVEN].max(axis=0).min() >= 0 and animated[:, 3:5].max() > 0  # blinks were read

@@ -102,11 +102,14 @@ def _scores_prior(capture, canonical, strength, window) -> np.ndarray | None:
     return prior
 
 
-def solve_capture(rig, target, capture, *, window=None, chunk: int = 512, prior_strength: float | None = None):
+def solve_capture(rig, target, capture, *, window=None, chunk: int = 512, prior_strength: float | None = None,
+                  settings: dict | None = None):
     """``(T, S)`` weights of ``rig``'s recognised targets (:attr:`~faceanim.rig.drive.NamedRig.driven`)
     from a capture (anything with ``motion``, ``blendshapes`` and ``blendshape_names``, as
     :class:`~faceanim.capture.stream.Capture`), solved against the motion at the control points
     ``target`` (the rig's mesh with its points) shares with it, read a run of frames at a time.
+    ``prior_strength`` (default :data:`~faceanim.rig.solve.PRIOR`) and ``settings`` (keywords of
+    :class:`~faceanim.rig.solve.RigSolver`: ridge, temporal, sparsity) tune the solve.
 
     Raises
     ------
@@ -144,7 +147,8 @@ def solve_capture(rig, target, capture, *, window=None, chunk: int = 512, prior_
         energy = (basis ** 2).sum(axis=2)
         led = energy[strength > 0].sum(axis=0) / np.maximum(energy.sum(axis=0), 1e-300)
         mass = np.clip(1.0 - led, 0.0, 1.0)
-    solver = RigSolver(basis, prior_strength=strength if prior is not None else None, point_weights=mass)
+    solver = RigSolver(basis, prior_strength=strength if prior is not None else None, point_weights=mass,
+                       **(settings or {}))
     out = np.empty((len(motion), len(driven)))
     valid = np.asarray(motion.valid)
     for a in range(0, len(motion), chunk):

@@ -23,11 +23,12 @@ from scipy.linalg import cho_factor, cho_solve
 
 from ..validation import as_array
 
-__all__ = ["RigSolver", "box_qp", "RIDGE", "TEMPORAL", "PRIOR"]
+__all__ = ["RigSolver", "box_qp", "RIDGE", "TEMPORAL", "PRIOR", "SPARSITY"]
 
 RIDGE = 1e-3      # against shapes that (nearly) repeat each other at the points
 TEMPORAL = 0.002  # pull towards the previous frame's weights
 PRIOR = 4.0       # strength of a blendshape score on the shapes it leads (eyes and brows)
+SPARSITY = 0.0    # a linear cost on each weight (an L1 term, as weights are >= 0): fewer shapes on
 _FLOOR = 1e-3     # the least size a shape's own ridge is measured in (fraction of the mean)
 
 
@@ -107,7 +108,7 @@ class RigSolver:
     """
 
     def __init__(self, basis, *, prior_strength=None, point_weights=None, ridge: float = RIDGE,
-                 temporal: float = TEMPORAL):
+                 temporal: float = TEMPORAL, sparsity: float = SPARSITY):
         basis = as_array(basis, "basis", shape=("S", "K", 3))
         S, K = basis.shape[:2]
         mass = np.ones(K) if point_weights is None else as_array(point_weights, "point_weights", shape=(K,))
@@ -126,6 +127,7 @@ class RigSolver:
         self.size = np.maximum(np.diag(gram), _FLOOR)
         self.temporal = float(temporal) * self.size
         self.H = gram + np.diag((ridge + temporal) * self.size)
+        self.sparsity = float(sparsity) * self.size
         self.last = np.zeros(S)
 
     def __call__(self, observed, prior=None) -> np.ndarray:
@@ -140,7 +142,7 @@ class RigSolver:
             if not np.isfinite(data[t]).all():
                 out[t] = self.last
                 continue
-            g = data[t] + self.temporal * self.last
+            g = data[t] + self.temporal * self.last - self.sparsity
             pull = np.where(has_prior[t], self.strength, 0.0)
             g += pull * np.where(has_prior[t], prior[t], 0.0)
             H = self.H + np.diag(pull)
