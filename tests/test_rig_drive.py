@@ -17,8 +17,9 @@ from faceanim.export import MorphSet, write_glb
 from faceanim.inputs import load_target
 from faceanim.motion import Motion
 from faceanim.rig.arkit import ARKIT_NAMES
-from faceanim.rig.drive import FACS_ARKIT, canonical_name, read_rig, weights_by_name
+from faceanim.rig.drive import FACS_ARKIT, canonical_name, weights_by_name
 from faceanim.rig.livelink import POSE_COLUMNS, Take, write_livelink_csv
+from faceanim.rig.rigfile import read_rig
 from faceanim.rig.solve import RigSolver, box_qp
 
 NAMES = ("jawOpen", "mouthSmile_L", "mouthSmile_R", "eyeBlinkLeft", "eyeBlinkRight", "browInnerUp", "mouthFunnel",

@@ -244,7 +244,7 @@ def _held(weights: np.ndarray) -> np.ndarray:
 
 
 def _write(rig, output, weights: np.ndarray, fps: float) -> DrivenRig:
-    from .rig.drive import write_rig_animation
+    from .rig.rigfile import write_rig_animation
 
     driven = rig.driven
     curves: dict[str, np.ndarray] = {}
@@ -262,7 +262,8 @@ def animate_rig(source, output, *, rig, points=None, fdp=None, neutral=None, smo
     from .inputs import captured_source, load_target, neutral_window
     from .outputs import check_outputs
     from .progress import as_progress
-    from .rig.drive import read_rig, weights_by_name
+    from .rig.drive import weights_by_name
+    from .rig.rigfile import read_rig
 
     output = Path(output)
     check_outputs({"-o": (output, ".glb"), "--fap": (fap, ".fap"), "--csv": (csv_path, ".csv")},
@@ -320,7 +321,8 @@ def express_rig(output, recipe: dict, *, rig, frames: int, fps: float) -> Driven
     (onset, apex, offset): an AU-named target takes its AU's intensity times the envelope, an
     ARKit-named one the AUs through :data:`~faceanim.rig.drive.FACS_ARKIT` (weights clipped to [0, 1])."""
     from .expressions import envelope
-    from .rig.drive import read_rig, weights_by_name
+    from .rig.drive import weights_by_name
+    from .rig.rigfile import read_rig
 
     named = read_rig(rig)
     canonical = [named.canonical[j] for j in named.driven]
