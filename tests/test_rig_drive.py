@@ -355,3 +355,30 @@ def test_a_video_drives_the_rig_with_the_scores_fused(rig, tmp_path):
     assert animated.min() >= 0 and animated.max() <= 1
     assert (animated[:, -1] == 0).all()  # "custom": no rig name, no curve
     assert animated[:, :DRIVEN].max(axis=0).min() >= 0 and animated[:, 3:5].max() > 0  # blinks were read
+
+
+def test_the_written_file_passes_the_khronos_validator(rig, tmp_path):
+    from conftest import khronos_report
+
+    path, _, _ = rig
+    weights = np.zeros((10, len(ARKIT_NAMES)))
+    weights[:, ARKIT_NAMES.index("jawOpen")] = np.linspace(0, 1, 10)
+    take, out = tmp_path / "take.csv", tmp_path / "out.glb"
+    _livelink(take, weights)
+    assert main(["animate", str(take), "--target", str(path), "-o", str(out)]) == 0
+    report = khronos_report(out)
+    assert report["errors"] == 0 and report["warnings"] == 0, report["messages"]
+
+
+def test_driving_an_animated_rig_replaces_its_weight_curves(rig, tmp_path):
+    path, _, _ = rig
+    first, second = np.zeros((10, len(ARKIT_NAMES))), np.zeros((6, len(ARKIT_NAMES)))
+    first[:, ARKIT_NAMES.index("jawOpen")] = 1.0
+    second[:, ARKIT_NAMES.index("mouthFunnel")] = 0.5
+    for name, weights in (("first", first), ("second", second)):
+        _livelink(tmp_path / f"{name}.csv", weights)
+    once, twice = tmp_path / "once.glb", tmp_path / "twice.glb"
+    assert main(["animate", str(tmp_path / "first.csv"), "--target", str(path), "-o", str(once)]) == 0
+    assert main(["animate", str(tmp_path / "second.csv"), "--target", str(once), "-o", str(twice)]) == 0
+    _, times, animated = _animated_weights(twice)  # one animation: the second take's
+    assert len(times) == 6 and animated[:, 0].max() == 0 and animated[:, 6].min() == pytest.approx(0.5)
