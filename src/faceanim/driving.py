@@ -14,7 +14,8 @@ anonymous shapes ``animate`` writes for other meshes. Three sources drive it:
   left to the blink's score, not forced onto a squint). The scores are calibrated per take: the
   ``--neutral`` window's mean score (else each score's 5th percentile over the take) becomes 0 and 1
   stays 1.
-* **a Live Link Face CSV** (:func:`~faceanim.rig.livelink.read_livelink_csv`): ARKit weights by name.
+* **a Live Link Face CSV** (:func:`~faceanim.rig.livelink.read_livelink_csv`): ARKit weights by name
+  (its head and eye angles are not applied: a rig's morph targets carry no head turn).
 * **an OpenFace or py-feat AU CSV**: ``AU12_r`` (OpenFace, 0-5, divided by 5) or ``AU12`` (py-feat,
   0-1) columns; other columns are not read. AU-named targets take the AUs; ARKit-named ones take them
   through :data:`~faceanim.rig.drive.FACS_ARKIT`.
