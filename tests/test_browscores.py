@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from faceanim.capture.browscores import BROWS, LOWER, RAISE, BrowDrive
+from faceanim.capture.browscores import BROWS, LOWER, RAISE, TRACKED_SHARE, BrowDrive
 
 NAMES = ("browDownLeft", "browDownRight", "browInnerUp", "browOuterUpLeft", "browOuterUpRight", "jawOpen")
 
@@ -43,20 +43,36 @@ def test_scores_below_the_neutral_do_not_push_the_brows():
     np.testing.assert_allclose(drive.heights, 0.0, atol=1e-12)
 
 
-def test_apply_replaces_only_the_brows_heights_and_keeps_frames_without_scores():
+def test_apply_changes_only_the_brows_heights_and_keeps_frames_without_scores():
     scores = scores_over(40, browInnerUp=1.0)
     scores[30] = np.nan  # a gap the capture filled: landmarks but no scores
     drive = drive_of(scores)
     moved = np.random.default_rng(0).normal(size=(40, 478, 3))
+    moved[:, drive.points, 1] = 5.0  # a tracked rise well past what the scores allow
     before = moved.copy()
     drive.apply(moved, 0)
     others = np.setdiff1d(np.arange(478), drive.points)
     np.testing.assert_array_equal(moved[:, others], before[:, others])
     np.testing.assert_array_equal(moved[:, drive.points, ::2], before[:, drive.points, ::2])  # x and z kept
     np.testing.assert_array_equal(moved[30, drive.points], before[30, drive.points])
-    np.testing.assert_allclose(moved[35, drive.points, 1], drive.heights[35])
+    raised = drive.heights[35] > 0
+    np.testing.assert_allclose(moved[35, drive.points[raised], 1], drive.heights[35, raised])
     chunk = before[32:40].copy()
     np.testing.assert_array_equal(drive.apply(chunk, 32), moved[32:40])  # chunk by chunk, as streamed
+
+
+def test_the_geometry_must_agree_on_the_way():
+    """Scores calling for a raise lift a brow no further than its tracked rise over the tracked share;
+    a brow the landmarks see still, or lowered, stays where it is (a painted face's blink scores a brow
+    raise the landmarks do not show)."""
+    drive = drive_of(scores_over(60, browInnerUp=1.0))
+    inner = list(drive.points).index(BROWS["Left"][0][0])
+    full = drive.heights[-1, inner]
+    moved = np.zeros((60, 478, 3))
+    for tracked, expected in ((0.0, 0.0), (-0.2, 0.0), (0.5 * full * TRACKED_SHARE, 0.5 * full), (full, full)):
+        moved[-1, BROWS["Left"][0][0], 1] = tracked
+        drive.apply(moved, 0)
+        np.testing.assert_allclose(moved[-1, BROWS["Left"][0][0], 1], expected, atol=1e-12)
 
 
 def test_no_brow_scores_or_no_neutral_scores_means_no_drive():

@@ -10,7 +10,11 @@ clipped to [0, 1] says how far the expression is on, and
   :data:`RAISE` x ENS0 at full strength, blended along the brow;
 * ``browDown{Left,Right}`` lowers the whole brow by :data:`LOWER` x ENS0.
 
-Only the brow points' vertical movement is replaced; their sideways and depth movement stay as
+The scores say how far; the geometry must agree on the way. A brow point rises to the scores' height
+only as far as :data:`TRACKED_SHARE` of its tracked rise allows (``min(height, rise / TRACKED_SHARE)``),
+and falls the same way: on a painted face the Face Landmarker scores a brow raise during every blink
+(browOuterUp 0.3-0.4) while the brow landmarks stay put, and a face whose brows it cannot see scores
+none. Only the brow points' vertical movement is changed; their sideways and depth movement stay as
 tracked, and so does every other point. A frame without scores (a gap the capture filled) keeps its
 tracked heights. The constants were chosen on one ICT identity pair (seed 3) and reported on others
 (`benchmarks/brow_scores.py`).
@@ -25,9 +29,10 @@ import numpy as np
 from ..validation import as_array
 from .smoothing import OneEuro, OneEuroFilter
 
-__all__ = ["BrowDrive", "BROWS", "RAISE", "LOWER"]
+__all__ = ["BrowDrive", "BROWS", "RAISE", "LOWER", "TRACKED_SHARE"]
 
 RAISE, LOWER = 0.35, 0.2  # ENS0 at a full score
+TRACKED_SHARE = 1 / 3  # of a brow's true rise, what its landmark shows (0.33-0.40 on ICT renders)
 # MediaPipe's brow landmarks, upper then lower contour, inner end to outer end.
 BROWS = {"Left": ((336, 296, 334, 293, 300), (285, 295, 282, 283, 276)),
          "Right": ((107, 66, 105, 63, 70), (55, 65, 52, 53, 46))}
@@ -87,9 +92,12 @@ class BrowDrive:
 
     def apply(self, displacements, start: int) -> np.ndarray:
         """``displacements (t, L, 3)`` of frames ``start .. start + t`` (head frame, cm), changed in
-        place: each brow point's height is the scores'; returned."""
+        place: each brow point's height is the scores', as far as its tracked height agrees (see the
+        module); returned."""
         heights = self.heights[start:start + len(displacements)]
-        have = np.isfinite(heights)
         column = displacements[:, self.points, 1]
-        displacements[:, self.points, 1] = np.where(have & np.isfinite(column), heights, column)
+        seen = column / TRACKED_SHARE
+        agreed = np.where(heights > 0, np.clip(seen, 0.0, heights), np.clip(seen, heights, 0.0))
+        have = np.isfinite(heights) & np.isfinite(column)
+        displacements[:, self.points, 1] = np.where(have, agreed, column)
         return displacements
