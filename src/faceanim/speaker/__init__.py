@@ -8,6 +8,7 @@ interpretation of received FAP streams through it (:class:`SpeakerModel`); kept 
 0.001
 """
 
+from .analysis import CloneAnalyser, analysis_mesh
 from .appearance import Appearance, read_appearance, write_appearance
 from .build import METHODS, build_model, mobile_names, reconstruction_error
 from .colour import ColourModel
@@ -16,4 +17,4 @@ from .speakerfile import SPEAKER_VERSION, read_speaker, write_speaker
 
 __all__ = ["SpeakerModel", "build_model", "mobile_names", "reconstruction_error", "fap_measurement", "read_speaker",
            "write_speaker", "DEFAULT_RIDGE", "METHODS", "SPEAKER_VERSION",
-           "Appearance", "ColourModel", "read_appearance", "write_appearance"]
+           "Appearance", "ColourModel", "read_appearance", "write_appearance", "CloneAnalyser", "analysis_mesh"]
