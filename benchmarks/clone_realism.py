@@ -94,8 +94,8 @@ def clip_figures(clip: str, stills: list | None, *, speed: bool = True) -> dict:
     build = np.arange(cut)
     model = build_model(motion, frames=build)
     appearance, fit = build_appearance(
-        model, points=motion.neutral + motion.displacements, landmarks=track.landmarks[..., :2], pose=motion.pose,
-        valid=motion.valid, width=track.width, height=track.height,
+        model, names=motion.names, points=motion.neutral + motion.displacements, landmarks=track.landmarks[..., :2],
+        pose=motion.pose, valid=motion.valid, width=track.width, height=track.height,
         read_frames=lambda indices: [images[i] for i in indices], frames=build)
     held = np.array([t for t in range(cut, T) if motion.valid[t]])
     parameters = model.fit_points(motion.displacements[:, motion.index(model.names)])

@@ -91,8 +91,9 @@ def clone():
     pose[:, :3, :3], pose[:, :3, 3] = R, t
     landmarks = project(CAMERA, moved(points, np.tile(FACING, (T, 1))))
     image = scene(width, height)
-    appearance, fit = build_appearance(model, points=points, landmarks=landmarks, pose=pose, valid=np.ones(T, bool),
-                                       width=width, height=height, read_frames=lambda idx: [image for _ in idx])
+    appearance, fit = build_appearance(model, names=landmark_names(468), points=points, landmarks=landmarks,
+                                       pose=pose, valid=np.ones(T, bool), width=width, height=height,
+                                       read_frames=lambda idx: [image for _ in idx])
     return model, appearance, fit, image
 
 
@@ -263,7 +264,7 @@ def test_a_clone_rendered_at_a_key_posture_reproduces_its_key_frame(clone, blend
 
     model, appearance, fit, image = clone
     assert np.allclose(fit.camera, CAMERA / np.linalg.norm(CAMERA), atol=1e-7)
-    outer, _ = lip_indices(model.names + model.static_names)
+    outer, _ = lip_indices(model.names + model.static_names, landmark_names(468))
     with CloneRenderer(model, appearance, blend=blend) as renderer:
         for q in range(3):
             points = posture_points(model, appearance.key_parameters[q:q + 1])[0]

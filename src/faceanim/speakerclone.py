@@ -155,8 +155,9 @@ def make_textures(video, output, *, model, frames=None, neutral=None, smoothing:
     chosen = np.arange(len(motion)) if frames is None else np.arange(*parse_frames(frames, len(motion)))
     try:
         appearance, fit = build_appearance(
-            speaker, points=motion.neutral + motion.displacements, landmarks=recorded.landmarks[..., :2],
-            pose=motion.pose, valid=motion.valid, width=recorded.width, height=recorded.height,
+            speaker, names=motion.names, points=motion.neutral + motion.displacements,
+            landmarks=recorded.landmarks[..., :2], pose=motion.pose, valid=motion.valid, width=recorded.width,
+            height=recorded.height,
             read_frames=lambda indices: _frames_of(video, indices), frames=chosen)
     except ValueError as exc:
         raise InputError(f"{video}: {exc}") from None

@@ -39,25 +39,27 @@ LIP_OUTER = (61, 185, 40, 39, 37, 0, 267, 269, 270, 409, 291, 375, 321, 405, 314
 LIP_INNER = (78, 191, 80, 81, 82, 13, 312, 311, 310, 415, 308, 324, 318, 402, 317, 14, 87, 178, 88, 95)
 
 
-def lip_indices(names) -> tuple[np.ndarray, np.ndarray]:
+def lip_indices(names, landmarks) -> tuple[np.ndarray, np.ndarray]:
     """``(outer, inner)`` indices into ``names`` (the mesh's points, mobile then static) of the lips'
-    outer and inner contours, in order around the mouth.
+    outer and inner contours, in order around the mouth. ``landmarks``: the names of MediaPipe's
+    landmarks in their order (a capture's ``Motion.names``), which tell which name each contour
+    landmark goes by.
 
     Raises
     ------
     ValueError
         A contour point is not among ``names``.
     """
-    from ..capture.headframe import landmark_names
-
-    everything = landmark_names(478)
+    landmarks = tuple(landmarks)
+    if len(landmarks) <= max(LIP_OUTER + LIP_INNER):
+        raise ValueError(f"landmarks must name MediaPipe's landmarks in order, got {len(landmarks)} names")
     lookup = {n: i for i, n in enumerate(names)}
     contours = []
     for contour in (LIP_OUTER, LIP_INNER):
-        missing = [everything[i] for i in contour if everything[i] not in lookup]
+        missing = [landmarks[i] for i in contour if landmarks[i] not in lookup]
         if missing:
             raise ValueError(f"the mesh lacks the lip contour's points {', '.join(missing[:4])}")
-        contours.append(np.array([lookup[everything[i]] for i in contour], dtype=np.int64))
+        contours.append(np.array([lookup[landmarks[i]] for i in contour], dtype=np.int64))
     return contours[0], contours[1]
 
 

@@ -37,12 +37,12 @@ _MARGIN = 0.02  # of the box, around the mesh in UV
 
 def synthesis_triangles(model, *, max_static: int = MAX_STATIC, max_triangles: int = MAX_TRIANGLES) -> np.ndarray:
     """``(F, 3)`` the model's triangles over its mobile points and the static points nearest the mouth
-    (frontal distance at rest to the lips' centre), as many static points as keep within ``max_static``
-    and ``max_triangles``."""
+    (frontal distance at rest to the lips' centre: feature points 2.2, 2.3, 8.3, 8.4), as many static
+    points as keep within ``max_static`` and ``max_triangles``."""
     P = len(model.names)
     mobile = model.rest
-    outer, _ = lip_indices(model.names + model.static_names)
-    centre = mobile[outer[outer < P]].mean(axis=0) if (outer < P).any() else mobile.mean(axis=0)
+    corners = [model.names.index(n) for n in ("2.2", "2.3", "8.3", "8.4") if n in model.names]
+    centre = mobile[corners].mean(axis=0) if corners else mobile.mean(axis=0)
     order = np.argsort(np.linalg.norm(model.static_points[:, :2] - centre[:2], axis=1))
     triangles = model.triangles
     for count in range(min(max_static, len(order)), -1, -1):
@@ -177,13 +177,15 @@ def choose_key_frames(model, parameters, frames) -> np.ndarray:
     return frames[[rest, opened, rounded]]
 
 
-def build_appearance(model, *, points, landmarks, pose, valid, width: int, height: int, read_frames, frames=None,
+def build_appearance(model, *, names, points, landmarks, pose, valid, width: int, height: int, read_frames, frames=None,
                      size: int = TEXTURE_SIZE) -> tuple[Appearance, object]:
     """The appearance of ``model`` from its video's capture.
 
     Parameters
     ----------
     model : SpeakerModel
+    names : sequence of str, (L,)
+        The capture's point names, in MediaPipe's landmark order (its ``Motion.names``).
     points : (T, L, 3) float64
         The capture's head-frame points (the motion's neutral plus displacements), every landmark.
     landmarks : (T, L, 2)
@@ -203,10 +205,11 @@ def build_appearance(model, *, points, landmarks, pose, valid, width: int, heigh
     fit : :class:`~faceanim.speaker.camera.CameraFit`
         The camera fit, with its rigid motion of every frame and its reprojection error.
     """
-    from ..capture.headframe import landmark_names
     from .camera import fit_video_camera
 
-    everything = landmark_names(np.shape(points)[1])
+    everything = tuple(names)
+    if len(everything) != np.shape(points)[1]:
+        raise ValueError(f"names must name the capture's {np.shape(points)[1]} points, got {len(everything)}")
     mesh_names = model.names + model.static_names
     lookup = {n: i for i, n in enumerate(everything)}
     missing = [n for n in mesh_names if n not in lookup]
@@ -234,7 +237,7 @@ def build_appearance(model, *, points, landmarks, pose, valid, width: int, heigh
     textures = np.stack([
         key_texture(image, project(fit.camera, moved(k, fit.rigid[t])) * scale - 0.5, triangles, face, bary)
         for image, t, k in zip(images, keys, key_points, strict=True)])
-    outer, inner = lip_indices(mesh_names)
+    outer, inner = lip_indices(mesh_names, everything)
     lips, skin = lip_and_skin(lip_mask_uv(uv, outer, inner, size))
     skin &= face >= 0
     colour = ColourModel.fit(textures[:, lips].reshape(-1, 3), textures[:, skin].reshape(-1, 3))
