@@ -332,8 +332,11 @@ def test_options_the_rig_route_cannot_honour_are_refused_before_work(rig, tmp_pa
     path, _, _ = rig
     take = tmp_path / "take.csv"
     _livelink(take, np.zeros((3, len(ARKIT_NAMES))))
-    with pytest.raises(InputError, match="--preview"):
-        pipeline.animate(take, tmp_path / "out.glb", target_mesh=path, preview=tmp_path / "p.mp4")
+    with pytest.raises(InputError, match="--head-motion"):
+        pipeline.animate(take, tmp_path / "out.glb", target_mesh=path, head_motion=True)
+    with pytest.raises(InputError, match="--preview"):  # a wrong suffix, before any work
+        pipeline.animate(take, tmp_path / "out.glb", target_mesh=path, preview=tmp_path / "p.avi")
+    assert not (tmp_path / "out.glb").exists()
     with pytest.raises(InputError, match="give --target"):
         pipeline.animate(take, tmp_path / "out.glb")
 
@@ -382,3 +385,20 @@ def test_driving_an_animated_rig_replaces_its_weight_curves(rig, tmp_path):
     assert main(["animate", str(tmp_path / "second.csv"), "--target", str(once), "-o", str(twice)]) == 0
     _, times, animated = _animated_weights(twice)  # one animation: the second take's
     assert len(times) == 6 and animated[:, 0].max() == 0 and animated[:, 6].min() == pytest.approx(0.5)
+
+
+def test_the_preview_and_obj_files_show_the_rig_moved_by_its_weights(rig, tmp_path):
+    from faceanim.geometry import read_mesh
+
+    path, target, shapes = rig
+    weights = np.zeros((8, len(ARKIT_NAMES)))
+    weights[:, ARKIT_NAMES.index("jawOpen")] = np.linspace(0, 1, 8)
+    take, out, frames = tmp_path / "take.csv", tmp_path / "out.glb", tmp_path / "frames"
+    _livelink(take, weights)
+    assert main(["animate", str(take), "--target", str(path), "-o", str(out), "--obj-sequence", str(frames),
+                 "--preview", str(tmp_path / "p.mp4")]) == 0
+    assert (tmp_path / "p.mp4").stat().st_size > 0
+    files = sorted(frames.glob("*.obj"))
+    assert len(files) == 8
+    last = read_mesh(files[-1]).vertices
+    np.testing.assert_allclose(last, target.mesh.vertices + shapes[0], atol=1e-5)

@@ -37,7 +37,7 @@ import numpy as np
 
 from .errors import FileFormatError, InputError
 
-__all__ = ["DrivenRig", "is_named_rig", "animate_rig", "express_rig", "read_au_csv", "solve_capture"]
+__all__ = ["DrivenRig", "is_named_rig", "animate_rig", "express_rig", "read_au_csv", "solve_capture", "rig_animation"]
 
 _BASELINE_PERCENTILE = 5.0  # without a --neutral window, a score's rest is this percentile over the take
 _AU_COLUMN = re.compile(r"^AU0*(\d{1,2})(?:_?([LR]))?$", re.IGNORECASE)
@@ -255,20 +255,38 @@ def _write(rig, output, weights: np.ndarray, fps: float) -> DrivenRig:
     return DrivenRig(tuple(rig.names[j] for j in driven), weights, float(fps), count)
 
 
+def rig_animation(rig, target, driven: DrivenRig):
+    """The rig's mesh (``target``'s, as :func:`~faceanim.inputs.load_target` reads the file) moved by
+    the driven weights, streamed: each vertex takes the targets' displacements at the rig vertex in its
+    place (a vertex of another mesh of the file keeps still)."""
+    from .geometry.animation import Animation
+
+    on, ids = rig.at(target.mesh.vertices)
+    shapes = rig.shapes[rig.driven][:, ids] * on[None, :, None]
+    rest = target.mesh.vertices
+    weights = driven.weights
+    return Animation.streamed(target.mesh, lambda a, b: rest + np.einsum("ts,svc->tvc", weights[a:b], shapes),
+                              len(weights), driven.fps)
+
+
 def animate_rig(source, output, *, rig, points=None, fdp=None, neutral=None, smoothing=True, progress=None,
-                fap=None, csv_path=None, capture=None):
+                fap=None, csv_path=None, capture=None, preview=None, obj_sequence=None, write_extra=None):
     """``faceanim animate SOURCE --target RIG.glb`` for a rig with named targets (see the module's
     notes): ``source`` a video, a saved track, a Live Link Face CSV or an AU CSV. Returns
-    ``(DrivenRig, FapStream or None)`` (FAPs only for a video)."""
+    ``(DrivenRig, FapStream or None)`` (FAPs only for a video). ``preview`` (``.mp4``) and
+    ``obj_sequence`` (a folder) are checked here before any work and written by ``write_extra(animation,
+    target)`` with the rig's mesh moved by the weights (:func:`rig_animation`)."""
     from .inputs import captured_source, load_target, neutral_window
-    from .outputs import check_outputs
+    from .outputs import SEQUENCE_FOLDER, check_outputs
     from .progress import as_progress
     from .rig.drive import weights_by_name
     from .rig.rigfile import read_rig
 
     output = Path(output)
-    check_outputs({"-o": (output, ".glb"), "--fap": (fap, ".fap"), "--csv": (csv_path, ".csv")},
+    check_outputs({"-o": (output, ".glb"), "--fap": (fap, ".fap"), "--csv": (csv_path, ".csv"),
+                   "--preview": (preview, ".mp4"), "--obj-sequence": (obj_sequence, SEQUENCE_FOLDER)},
                   inputs={"SOURCE": source, "--target": rig, "--points": points, "--fdp": fdp})
+    extra = (preview is not None or obj_sequence is not None) and write_extra is not None
     shown = as_progress(progress)
     named = read_rig(rig)
     canonical = [named.canonical[j] for j in named.driven]
@@ -293,7 +311,11 @@ def animate_rig(source, output, *, rig, points=None, fdp=None, neutral=None, smo
             weights[missing] = np.nan
             weights = _held(weights)
         shown.status(f"writing {output} ({len(weights)} frames on {len(canonical)} named targets)")
-        return _write(named, output, weights, fps), None
+        driven = _write(named, output, weights, fps)
+        if extra:
+            target = load_target(rig, points=points, fdp=fdp, progress=shown)
+            write_extra(rig_animation(named, target, driven), target)
+        return driven, None
     window = neutral_window(neutral, "animate with a named rig")
     target = load_target(rig, points=points, fdp=fdp, progress=shown)
     if capture is None:
@@ -314,7 +336,10 @@ def animate_rig(source, output, *, rig, points=None, fdp=None, neutral=None, smo
 
             write_fap_csv(csv_path, stream, times=capture.times, success=capture.valid)
     shown.status(f"writing {output}")
-    return _write(named, output, weights, capture.fps), stream
+    driven = _write(named, output, weights, capture.fps)
+    if extra:
+        write_extra(rig_animation(named, target, driven), target)
+    return driven, stream
 
 
 def express_rig(output, recipe: dict, *, rig, frames: int, fps: float) -> DrivenRig:
