@@ -345,7 +345,7 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     return animation
 
 
-def _named_rig_route(source, target_mesh, target, preview, obj_sequence, head_motion, via) -> bool:
+def _named_rig_route(source, target_mesh, target, head_motion, via) -> bool:
     """Whether ``animate`` drives a named rig (a CSV of weights, or a ``--target`` ``.glb`` whose morph
     targets carry ARKit or AU names; see :mod:`faceanim.driving`), refusing at once what that route
     does not do."""
@@ -358,8 +358,7 @@ def _named_rig_route(source, target_mesh, target, preview, obj_sequence, head_mo
     if target_mesh is None:
         raise InputError(f"{source}: a CSV of weights drives a rig: give --target a .glb whose morph targets carry "
                          f"{EXPECTED_NAMES}")
-    for given, option in ((preview, "--preview"), (obj_sequence, "--obj-sequence"), (head_motion, "--head-motion"),
-                          (via != "motion", "--via faps")):
+    for given, option in ((head_motion, "--head-motion"), (via != "motion", "--via faps")):
         if given:
             raise InputError(f"{target_mesh}: a named rig is animated through its own morph weights; {option} is "
                              "not available with it")
@@ -393,12 +392,22 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
 
     if via not in ("motion", "faps"):
         raise InputError(f"via must be motion or faps, got {via!r}")
-    rig_route = _named_rig_route(video, target_mesh, target, preview, obj_sequence, head_motion, via)
+    rig_route = _named_rig_route(video, target_mesh, target, head_motion, via)
     if rig_route:
         from .driving import animate_rig
+        from .export import write_obj_sequence
+        from .progress import as_progress
+
+        def write_extra(animation, target):  # the rig's mesh moved by its weights: a preview, OBJ files
+            with spilled(animation, folder=Path(output).parent, progress=as_progress(progress)) as kept:
+                if obj_sequence is not None:
+                    write_obj_sequence(obj_sequence, kept)
+                if preview is not None:
+                    _preview(preview, kept, target, as_progress(progress))
 
         return animate_rig(video, output, rig=target_mesh, points=points, fdp=fdp, neutral=neutral,
-                           smoothing=smoothing, progress=progress, fap=fap, csv_path=csv, capture=capture)
+                           smoothing=smoothing, progress=progress, fap=fap, csv_path=csv, capture=capture,
+                           preview=preview, obj_sequence=obj_sequence, write_extra=write_extra)
     output = Path(output)
     check_outputs({"-o": (output, ".glb"), "--fap": (fap, ".fap"), "--preview": (preview, ".mp4"),
                    "--csv": (csv, ".csv"), "--obj-sequence": (obj_sequence, SEQUENCE_FOLDER)},
