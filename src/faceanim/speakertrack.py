@@ -84,7 +84,7 @@ def _draw(image, xy, triangles, colour) -> None:
 
 def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=None, max_evals: int = 150,
                   rigid: bool = False,
-                  field=None, raster: str = "numpy", neutral=None, smoothing: bool = True,
+                  field=None, raster: str | None = None, neutral=None, smoothing: bool = True,
                   progress=None) -> TrackedSpeech:
     """``faceanim speaker track``: the articulatory parameters of every frame of ``video`` (written
     to ``output``, ``.csv``: ``frame, timestamp, <parameter names>`` as ``faceanim speaker analyse
@@ -96,8 +96,8 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
 
     ``model``: a speaker file with an appearance (``faceanim speaker textures``); ``max_evals``: the
     cap on evaluations per frame; ``field``: ``"top"`` or ``"bottom"`` analyses one field of
-    interlaced footage (its rows only: the overlay has half the rows); ``raster``: ``"numpy"`` or
-    ``"gl"`` (:mod:`faceanim.speaker.lipraster`).
+    interlaced footage (its rows only: the overlay has half the rows); ``raster``: ``"gl"``,
+    ``"numpy"`` or None (GL where it can run, else numpy; :mod:`faceanim.speaker.lipraster`).
 
     Raises
     ------

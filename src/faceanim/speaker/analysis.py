@@ -205,7 +205,9 @@ class CloneAnalyser:
         The cap on evaluations of the difference per frame (the simplex's first 7 included).
     rigid : bool
         Also analyse a rigid correction of the head pose (6 more parameters).
-    raster : {"numpy", "gl"}
+    raster : {None, "gl", "numpy"}
+        The lip-probability renderer (:mod:`.lipraster`); None (default): GL where a context can be
+        made (faster in ``benchmarks/clone_tracking.py``: 17 against 12 frames/s), else numpy.
     field : {None, "top", "bottom"}
         The frames are one field of interlaced footage: rows 0, 2, ... (top) or 1, 3, ... (bottom) of
         the frames the camera was fitted on.
@@ -221,10 +223,10 @@ class CloneAnalyser:
     """
 
     def __init__(self, model: SpeakerModel, appearance, *, width: int, height: int, mouth_width: float,
-                 max_evals: int = DEFAULT_MAX_EVALS, rigid: bool = False, raster: str = "numpy", field=None,
+                 max_evals: int = DEFAULT_MAX_EVALS, rigid: bool = False, raster: str | None = None, field=None,
                  camera=None, prior: float = DEFAULT_PRIOR, photometric: bool = True, blur: float = 0.0):
-        if raster not in RASTERS:
-            raise ValueError(f"raster must be one of {', '.join(RASTERS)}, got {raster!r}")
+        if raster is not None and raster not in RASTERS:
+            raise ValueError(f"raster must be None or one of {', '.join(RASTERS)}, got {raster!r}")
         if field not in (None, "top", "bottom"):
             raise ValueError(f"field must be None, top or bottom, got {field!r}")
         K = model.parameter_count
@@ -267,8 +269,16 @@ class CloneAnalyser:
         hi = np.minimum(np.ceil(uv.max(axis=0) * s) + 2, s).astype(int)
         part = np.ascontiguousarray(filtered[:, lo[1]:hi[1], lo[0]:hi[0]])
         uv = (uv * s - lo) / (hi - lo)
-        kind = NumpyLipRaster if raster == "numpy" else GlLipRaster
-        self.raster = kind(self.mesh.triangles, uv, part, width=self.box_width, height=self.box_height)
+        options = dict(width=self.box_width, height=self.box_height)
+        if raster == "numpy":
+            self.raster = NumpyLipRaster(self.mesh.triangles, uv, part, **options)
+        elif raster == "gl":
+            self.raster = GlLipRaster(self.mesh.triangles, uv, part, **options)
+        else:
+            try:
+                self.raster = GlLipRaster(self.mesh.triangles, uv, part, **options)
+            except (ImportError, RuntimeError):  # no moderngl, or no EGL here
+                self.raster = NumpyLipRaster(self.mesh.triangles, uv, part, **options)
         self.colour = appearance.colour
 
     # ---- geometry
