@@ -193,8 +193,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--rigid", action="store_true", help="also analyse the head's rigid motion (6 more parameters, "
                                                         "a correction of the tracker's pose)")
     p.add_argument("--field", choices=("top", "bottom"), help="interlaced footage: analyse one field's rows only")
-    p.add_argument("--raster", choices=("numpy", "gl"), default="numpy",
-                   help="the lip-probability renderer (default numpy; see benchmarks/results/clone_tracking.md)")
+    p.add_argument("--raster", choices=("gl", "numpy"),
+                   help="the lip-probability renderer (default gl where it can run, else numpy; see "
+                        "benchmarks/results/clone_tracking.md)")
     _capture_arguments(p, image=False)
 
     p = commands.add_parser("avatar", help="a textured 3D face from a portrait",
