@@ -56,6 +56,7 @@ DEFAULT_PRIOR = 1e-2
 _STEP_ARTICULATORY = 0.5
 _STEP_ROTATION = 1.0
 _STEP_TRANSLATION = 0.1
+_RIGID_STEPS = np.array([_STEP_ROTATION] * 3 + [_STEP_TRANSLATION] * 3)
 
 
 def _mp_name(index: int) -> str:
@@ -420,6 +421,8 @@ class CloneAnalyser:
             count += 1
             pose = self.pose_of(base_pose, x[K:]) if self.rigid else base_pose
             value = self._difference(self.clone_image(x[:K], pose, origin), target) + self.prior * np.mean(x[:K] ** 2)
+            if self.rigid:  # the correction held near the tracker's pose: one simplex step costs as one std
+                value += self.prior * np.mean((x[K:] / _RIGID_STEPS) ** 2)
             if value < best[0]:
                 best[0], best[1] = value, x.copy()
             return value
