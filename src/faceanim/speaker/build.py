@@ -14,9 +14,9 @@ used (so a parameter reads in standard deviations, and the interpretation's ridg
 
 ``benchmarks/speaker_model.py`` measures both on frames held out of the fit (6 contiguous blocks of
 each shared speech clip, one held out at a time; 10 reporting draws). With 6 parameters they explain
-about as much of the held-out lips' and jaw's variance (medians 85.9% guided, 84.3% PCA about the
-block's own mean; 93.6% and 93.8% about the model's rest), but the guided model decodes the
-held-out frames' tracked FAPs closer in 7 and 8 draws of 10 (from all 34 FAPs and from the 8 of the ICP
+about as much of the held-out lips' and jaw's variance (medians 84.5% guided, 82.2% PCA about the
+block's own mean; 92.8% and 92.0% about the model's rest), but the guided model decodes the
+held-out frames' tracked FAPs closer in 9 and 7 draws of 10 (from all 34 FAPs and from the 8 of the ICP
 figure): its parameters are read from the feature points the FAPs measure, where PCA's also serve
 the jaw line and cheeks. Guided is the default.
 
