@@ -81,3 +81,15 @@ def test_no_brow_scores_or_no_neutral_scores_means_no_drive():
     scores = scores_over(30)
     scores[:10] = np.nan
     assert BrowDrive.of_scores(scores, NAMES, np.arange(30) / 25, 3.0, np.arange(10)) is None
+
+
+def test_noisy_scores_leave_the_neutral_frames_at_rest():
+    """Calibrated on the neutral frames' highest score, a jittering score moves no brow inside its own
+    neutral window, so the rest face stays the neutral frames' mean."""
+    scores = scores_over(60, browInnerUp=0.9)
+    scores[:20] += np.random.default_rng(1).normal(scale=0.03, size=(20, len(NAMES)))
+    drive = BrowDrive.of_scores(scores, NAMES, np.arange(60) / 25.0, 3.0, np.arange(5, 15))
+    np.testing.assert_array_equal(drive.heights[5:15], 0.0)
+    assert drive.heights[-1].max() > 0.5 * RAISE * 3.0
+    unfiltered = BrowDrive.of_scores(scores, NAMES, np.arange(60) / 25.0, 3.0, np.arange(5, 15), smoothing=None)
+    np.testing.assert_array_equal(unfiltered.heights[5:15], 0.0)

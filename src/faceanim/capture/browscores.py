@@ -3,8 +3,9 @@
 The tracker's brow landmarks follow a brow raise by about a third (0.33-0.40 of the true lift on ICT
 renders, `benchmarks/roundtrip_ict.py`): its mesh is held to a typical shape. Its blendshape scores are
 trained on exactly that cue. Each brow point's height in the head frame is therefore read from the
-scores: for a score ``s`` whose median over the neutral frames is ``s0``, ``(s - s0) / (1 - s0)``
-clipped to [0, 1] says how far the expression is on, and
+scores: for a score ``s`` whose highest value over the neutral frames is ``s0``, ``(s - s0) / (1 - s0)``
+clipped to [0, 1] says how far the expression is on (so the neutral frames keep their brows exactly
+where the rest face has them), and
 
 * ``browInnerUp`` raises the inner end of each brow, ``browOuterUp{Left,Right}`` the outer end, by
   :data:`RAISE` x ENS0 at full strength, blended along the brow;
@@ -33,6 +34,7 @@ __all__ = ["BrowDrive", "BROWS", "RAISE", "LOWER", "TRACKED_SHARE"]
 
 RAISE, LOWER = 0.35, 0.2  # ENS0 at a full score
 TRACKED_SHARE = 1 / 3  # of a brow's true rise, what its landmark shows (0.33-0.40 on ICT renders)
+_FILTER = OneEuro()
 # MediaPipe's brow landmarks, upper then lower contour, inner end to outer end.
 BROWS = {"Left": ((336, 296, 334, 293, 300), (285, 295, 282, 283, 276)),
          "Right": ((107, 66, 105, 63, 70), (55, 65, 52, 53, 46))}
@@ -62,22 +64,26 @@ class BrowDrive:
                                                     frozen=True))
 
     @classmethod
-    def of_scores(cls, scores, names, times, ens0: float, neutral_frames) -> BrowDrive | None:
+    def of_scores(cls, scores, names, times, ens0: float, neutral_frames, *,
+                  smoothing: OneEuro | None = _FILTER) -> BrowDrive | None:
         """From ``scores (T, S)`` named ``names``, at ``times (T,)`` seconds; ``neutral_frames`` the
-        frames at rest (a boolean mask or indices) the scores are calibrated on. None when the scores
-        lack a brow score or no neutral frame has scores."""
+        frames at rest (indices) the scores are calibrated on, None when the neutral comes from
+        elsewhere (then each score's 5th percentile over the video is its rest). ``smoothing``: the
+        filter the landmarks had. None when the scores lack a brow score or no neutral frame has
+        scores."""
         names = list(names)
         if scores is None or any(n not in names for n in _SCORES):
             return None
         raw = np.asarray(scores, dtype=np.float64)[:, [names.index(n) for n in _SCORES]]
-        at_rest = raw[neutral_frames]
+        # the landmarks are filtered before they become motion; the scores that move the brows get the
+        # same filter, so a brow does not jitter more than the rest of the face
+        smooth = (raw if smoothing is None else
+                  OneEuroFilter(smoothing)(raw[:, :, None], np.asarray(times, dtype=np.float64))[:, :, 0])
+        at_rest = smooth if neutral_frames is None else smooth[neutral_frames]
         at_rest = at_rest[np.isfinite(at_rest).all(axis=1)]
         if not len(at_rest):
             return None
-        # the landmarks are filtered (One Euro) before they become motion; the scores that replace
-        # them get the same filter, so a brow does not jitter more than the rest of the face
-        smooth = OneEuroFilter(OneEuro())(raw[:, :, None], np.asarray(times, dtype=np.float64))[:, :, 0]
-        s0 = np.median(at_rest, axis=0)
+        s0 = np.percentile(at_rest, 5, axis=0) if neutral_frames is None else at_rest.max(axis=0)
         on = np.clip((smooth - s0) / np.maximum(1.0 - s0, 1e-3), 0.0, 1.0)
         inner, outer, down = on[:, 0], {"Left": on[:, 1], "Right": on[:, 2]}, {"Left": on[:, 3], "Right": on[:, 4]}
         columns, points = [], []

@@ -182,11 +182,13 @@ def rest_window(points, usable: np.ndarray, fps: float, neutral=None, neutral_po
     return relaxed_window(points, usable, fps, mouth=mouth_gap(points))
 
 
-def brow_drive(blendshapes, names, times, fapu, usable: np.ndarray, window) -> BrowDrive | None:
+def brow_drive(blendshapes, names, times, fapu, usable: np.ndarray, window,
+               smoothing: OneEuro | None = DEFAULT_SMOOTHING) -> BrowDrive | None:
     """The brow heights the tracker's scores call for (:class:`~.browscores.BrowDrive`), calibrated on
-    the ``window`` frames at rest (all usable frames when None); None without brow scores."""
-    at_rest = usable if window is None else np.arange(*window)
-    return BrowDrive.of_scores(blendshapes, names, times, fapu.ens0, at_rest)
+    the usable ones of the ``window`` frames at rest (on the whole video when None); None without brow
+    scores."""
+    at_rest = None if window is None else window[0] + np.flatnonzero(usable[window[0]:window[1]])
+    return BrowDrive.of_scores(blendshapes, names, times, fapu.ens0, at_rest, smoothing=smoothing)
 
 
 def displacements_from(points: np.ndarray, rest: np.ndarray, usable: np.ndarray) -> np.ndarray:
@@ -228,7 +230,8 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
     window = rest_window(points, usable, track.fps, neutral, neutral_points)
     rest, fapu = settle(points, pose, usable, track.fps, neutral=window, neutral_points=neutral_points)
     displacements = displacements_from(points, rest, usable)
-    brows = brow_drive(track.blendshapes, track.blendshape_names, track.times, fapu, usable, window) if scores else None
+    brows = (brow_drive(track.blendshapes, track.blendshape_names, track.times, fapu, usable, window, smoothing)
+             if scores else None)
     if brows is not None:
         brows.apply(displacements, 0)
     displacements.flags.writeable = False  # handed over: the Motion takes it uncopied

@@ -125,7 +125,7 @@ def captured(source, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTH
     head_frame_into(raw, usable, times, width, height, points, pose, smoothing)
     window = rest_window(points, usable, fps, neutral, neutral_points)
     rest, fapu = settle(points, pose, usable, fps, neutral=window, neutral_points=neutral_points)
-    brows = brow_drive(blendshapes, names, times, fapu, usable, window) if scores else None
+    brows = brow_drive(blendshapes, names, times, fapu, usable, window, smoothing) if scores else None
 
     def frames(start: int, stop: int) -> np.ndarray:
         moved = displacements_from(points[start:stop], rest, usable[start:stop])
