@@ -210,6 +210,7 @@ def _analyser(model, appearance, **options):
     from faceanim.speaker.analysis import _project
 
     xy = _project(np.asarray(appearance.camera), np.eye(4), lips) * width
+    options.setdefault("raster", "numpy")  # the same pixels everywhere (GL's agreement is tested above)
     return CloneAnalyser(model, appearance, width=width, height=160, mouth_width=float(np.ptp(xy[:, 0])), **options)
 
 
