@@ -271,6 +271,19 @@ def _write_summary(folder: Path, result: BatchResult) -> None:
         tmp.write_text("\n".join(lines) + "\n")
 
 
+def longest_first(videos) -> list[int]:
+    """The order to hand ``videos`` to the workers: the largest files first (size stands in for length
+    without opening them; a bad file fails in its own task, not here). Scheduled in input order, a
+    long video that comes last runs alone on one worker while the others wait: on a batch of 6 shared
+    videos that tail alone held 2 workers to 1.47x of 1."""
+    def size(k: int) -> int:
+        try:
+            return videos[k].path.stat().st_size
+        except OSError:
+            return 0
+    return sorted(range(len(videos)), key=lambda k: (-size(k), k))
+
+
 def run_batch(inputs, output, *, do=("encode",), target_mesh=None, workers: int | None = None,
               address: str | None = None, force: bool = False, progress=None) -> BatchResult:
     """``faceanim batch``: ``do`` (``encode``, ``aus``, ``blendshapes``, ``animate``, ``plot``, or a
@@ -316,8 +329,8 @@ def run_batch(inputs, output, *, do=("encode",), target_mesh=None, workers: int 
         task = ray.remote(num_cpus=1, max_retries=0)(process_video)
         shared = ray.put(target)
         count = ray.remote(num_cpus=0)(FrameCount).remote() if shown.shows_bars else None
-        pending = {task.remote(v, steps, folder.absolute(), force=force, target=shared, report=count): k
-                   for k, v in enumerate(videos)}
+        pending = {task.remote(videos[k], steps, folder.absolute(), force=force, target=shared, report=count): k
+                   for k in longest_first(videos)}
         results: list[VideoResult | None] = [None] * len(videos)
 
         def finished():
