@@ -402,3 +402,15 @@ def test_the_preview_and_obj_files_show_the_rig_moved_by_its_weights(rig, tmp_pa
     assert len(files) == 8
     last = read_mesh(files[-1]).vertices
     np.testing.assert_allclose(last, target.mesh.vertices + shapes[0], atol=1e-5)
+
+
+def test_sided_au_columns_are_sides_and_lower_case_r_is_openfaces_intensity(tmp_path):
+    sided = tmp_path / "sided.csv"
+    sided.write_text("frame,AU12_L,AU12_R\n1,0.2,0.9\n2,0.3,0.8\n")
+    curves, _ = read_au_csv(sided)
+    np.testing.assert_allclose(curves["12L"], [0.2, 0.3])
+    np.testing.assert_allclose(curves["12R"], [0.9, 0.8])  # a right side, not an intensity on 0-5
+    openface = tmp_path / "openface.csv"
+    openface.write_text("frame, AU12_r, AU12_c\n1, 2.5, 1\n2, 5.0, 1\n")
+    curves, _ = read_au_csv(openface)
+    np.testing.assert_allclose(curves["12"], [0.5, 1.0])

@@ -192,7 +192,8 @@ def read_au_csv(path) -> tuple[dict[str, np.ndarray], float]:
     header = [cell.strip() for cell in rows[0]]
     columns: dict[str, tuple[int, float]] = {}
     for k, cell in enumerate(header):
-        intensity = cell.lower().endswith("_r")  # OpenFace's intensity, 0-5 (its AU*_c is presence, not read)
+        # OpenFace's intensity, 0-5, is a lower-case _r (its AU*_c is presence, not read); AU12_R is a side
+        intensity = cell.endswith("_r")
         match = _AU_COLUMN.match(cell[:-2] if intensity else cell)
         if match:
             code = f"{int(match.group(1))}{(match.group(2) or '').upper()}"
