@@ -287,8 +287,12 @@ def test_track_refuses_a_model_without_textures_in_one_line_and_writes_nothing(t
     err = capsys.readouterr().err
     assert "has no textures" in err and len(err.strip().splitlines()) == 1
     assert list(out.iterdir()) == []
-    with pytest.raises(InputError, match="--max-evals 3"):
+    parameters = synthetic_model().parameter_count
+    with pytest.raises(InputError, match=f"--max-evals 3: the simplex over {parameters} parameters"):
         track_speaker(tmp_path / "v.mp4", out / "p.csv", model=tmp_path / "bare.npz", max_evals=3)
+    with pytest.raises(InputError, match=f"over {parameters + 6} parameters \\(with --rigid\\)"):
+        track_speaker(tmp_path / "v.mp4", out / "p.csv", model=tmp_path / "bare.npz", max_evals=parameters + 1,
+                      rigid=True)
 
 
 @pytest.fixture(scope="module")

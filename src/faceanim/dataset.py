@@ -190,7 +190,9 @@ def _temporary_names(names) -> re.Pattern:
 def remove_leftovers(folder, videos, steps) -> list[Path]:
     """Remove from ``folder`` the hidden temporary files that a batch's workers, stopped mid-write
     (Ctrl-C, a killed worker, a lost cluster node), left behind: only those named after an output of
-    ``videos`` and ``steps`` (or the summary) by :mod:`faceanim.atomic`'s pattern, never another file.
+    ``videos`` and ``steps`` (or the summary) by :mod:`faceanim.atomic`'s pattern, and faceanim's own
+    hidden probes and frame stores, never a user's file. A probe or frame store of another faceanim job
+    writing into the same folder at that moment is removed too: give each running batch its own folder.
     Returns what was removed. :func:`run_batch` calls it on start and after an interrupt."""
     folder = Path(folder)
     if not folder.is_dir():

@@ -30,7 +30,7 @@ _ADAPT_FRAMES = 3
 _CAMERA_FRAMES = 60
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class TrackedSpeech:
     """What :func:`track_speaker` found: ``parameters (T, K)``, ``rigid (T, 6)`` (the head's rotation
     vector in radians and translation in cm, :mod:`faceanim.speaker.camera`), ``evaluations (T,)``,
@@ -118,12 +118,15 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     check_outputs({"-o": (output, ".csv"), "--fap": (fap, ".fap"), "--overlay": (overlay, ".mp4"),
                    "--motion-out": (motion_out, ".csv")},
                   inputs={"VIDEO": video, "--model": model, "--neutral": neutral})
-    if isinstance(max_evals, bool) or not isinstance(max_evals, (int, np.integer)) or not 7 <= max_evals <= 100000:
-        raise InputError(f"--max-evals {max_evals}: give a whole number of evaluations from 7 (the simplex's "
-                         "first vertices) to 100000")
+    if isinstance(max_evals, bool) or not isinstance(max_evals, (int, np.integer)) or not 1 <= max_evals <= 100000:
+        raise InputError(f"--max-evals {max_evals}: give a whole number of evaluations, at most 100000")
     if field is not None and field not in FIELDS:
         raise InputError(f"--field {field}: choose top or bottom")
     speaker = read_speaker(model)
+    vertices = speaker.parameter_count + 1 + (6 if rigid else 0)  # the simplex's first vertices
+    if max_evals < vertices:
+        raise InputError(f"--max-evals {max_evals}: the simplex over {vertices - 1} parameters"
+                         f"{' (with --rigid)' if rigid else ''} needs at least {vertices} evaluations")
     appearance = read_appearance(model)
     if appearance is None:
         raise InputError(f"{model}: the speaker model has no textures; add them first with faceanim speaker "

@@ -177,8 +177,10 @@ def rest_window(points, usable: np.ndarray, fps: float, neutral=None, neutral_po
     """The ``(start, end)`` frames the neutral is read from: ``neutral`` when given, else those
     :func:`relaxed_window` finds in head-frame ``points``; None when ``neutral_points`` give the
     neutral instead. What :func:`settle` takes as ``neutral``."""
-    if neutral_points is not None or neutral is not None:
-        return None if neutral_points is not None else neutral
+    if neutral_points is not None:
+        return None
+    if neutral is not None:
+        return neutral
     return relaxed_window(points, usable, fps, mouth=mouth_gap(points))
 
 

@@ -170,7 +170,7 @@ def rigid_transform(correction, centre) -> np.ndarray:
     return M
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class FrameAnswer:
     """One frame's analysis: ``parameters (K,)``, the rigid ``correction (6,)`` (zeros without
     ``rigid``), the ``pose (4, 4)`` it gives, the ``evaluations`` spent and the final ``cost`` (mean

@@ -126,7 +126,7 @@ def moved(points, rigid) -> np.ndarray:
     return np.einsum("...ij,...nj->...ni", R, np.asarray(points, dtype=np.float64)) + t[..., None, :]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CameraFit:
     """A video's camera (3, 4), the rigid motion of each frame (T, 6), NaN where the frame had no face,
     and the reprojection error of the landmarks used, in pixels: median and worst over frames of each

@@ -34,7 +34,7 @@ _FLOOR = 1.0
 _MIN_PIXELS = 10
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ColourModel:
     """Means ``lip_mean``, ``skin_mean`` (3,) and pooled covariance ``covariance (3, 3)`` of RGB (0-255);
     ``direction (3,)`` is Fisher's discriminant and ``spread`` the pooled standard deviation along it."""

@@ -4,12 +4,13 @@ Analysis by synthesis renders the clone's lips (a mesh of at most 50 triangles) 
 frame, into a box of a few thousand pixels, with a texture that is a per-pixel mix of the key
 postures' lip-probability textures. Two implementations draw exactly that:
 
-* :class:`NumpyLipRaster` (the default): every triangle's pixels found at once (each triangle's
-  bounding box expanded into candidate pixels, kept where the barycentric coordinates are all >= 0),
-  the texture read bilinearly at the interpolated UV. No context, no transfer: at ~30 triangles over
-  ~3,000 pixels it beats the GL pipeline's fixed cost per draw (``benchmarks/clone_tracking.py``).
-* :class:`GlLipRaster`: moderngl on EGL (Mesa's software rasteriser on a CPU, the GPU where there is
-  one), one float framebuffer, the textures in one float texture array mixed in the fragment shader.
+* :class:`NumpyLipRaster`: every triangle's pixels found at once (each triangle's bounding box
+  expanded into candidate pixels, kept where the barycentric coordinates are all >= 0), the texture
+  read bilinearly at the interpolated UV; no context, so it runs wherever numpy does.
+* :class:`GlLipRaster` (the tracker's default where a context can be made): moderngl on EGL (Mesa's
+  software rasteriser on a CPU, the GPU where there is one), one float framebuffer, the textures in
+  one float texture array mixed in the fragment shader. It measured faster on the speech clips
+  (14-17 against 11-14 frames/s, ``benchmarks/clone_tracking.py``).
 
 Both take vertices in box pixels (x right, y down, pixel ``(i, j)`` covering ``[j, j+1) x [i, i+1)``,
 sampled at its centre ``(j + 0.5, i + 0.5)``), texture coordinates ``uv`` in ``[0, 1]`` (``u`` along
