@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FileFormatError, InputError
+from .textfile import read_text
 
 __all__ = ["DrivenRig", "is_named_rig", "animate_rig", "express_rig", "read_au_csv", "solve_capture", "rig_animation"]
 
@@ -178,14 +179,7 @@ def read_au_csv(path) -> tuple[dict[str, np.ndarray], float]:
         not a number, an intensity outside its scale (0-5 for ``_r``, 0-1 otherwise).
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise FileFormatError(path, f"is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    text = read_text(path)
     rows = [r for r in csv.reader(text.splitlines()) if r]
     if not rows:
         raise FileFormatError(path, "is empty")

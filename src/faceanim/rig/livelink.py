@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_output
-from ..errors import FileFormatError, InputError
+from ..errors import FileFormatError
+from ..textfile import read_text
 from ..validation import as_array
 from .arkit import ARKIT_NAMES
 
@@ -192,14 +193,7 @@ def read_livelink_csv(path, *, rate: int | None = None) -> Take:
         [0, 1] or an angle that is not finite.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise FileFormatError(path, f"is not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    text = read_text(path)
     rows = list(csv.reader(text.splitlines()))
     if not rows or not any(cell.strip() for cell in rows[0]):
         raise FileFormatError(path, "is empty; a Live Link Face CSV starts with a header of column names", line=1)
