@@ -177,7 +177,7 @@ def fit_video_camera(points, landmarks, pose, valid, width: int, height: int, *,
     scale = np.array([width, height], dtype=np.float64)
     error = np.linalg.norm((project(P, X) - x) * scale, axis=-1)
     error[~ok] = np.nan
-    per_frame = np.nanmedian(error, axis=1)
+    per_frame = np.nanmedian(error[ok.any(axis=1)], axis=1)  # a frame with no finite point has no error to report
     return CameraFit(P, rigid, float(np.median(per_frame)), float(per_frame.max()), float(np.nanmax(error)))
 
 
