@@ -11,6 +11,7 @@ import numpy as np
 
 from ..geometry.mesh import Mesh
 from .camera import Camera
+from .context import egl_context
 
 __all__ = ["Renderer", "MODES"]
 
@@ -84,17 +85,9 @@ class Renderer:
     """
 
     def __init__(self, width: int, height: int, *, background=(255, 255, 255)):
-        try:
-            import moderngl
-        except ImportError:
-            raise ImportError("rendering needs moderngl: pip install 'faceanim[render]'") from None
         if width <= 0 or height <= 0:
             raise ValueError(f"image size must be positive, got {width}x{height}")
-        try:
-            self._ctx = moderngl.create_context(standalone=True, backend="egl")
-        except Exception as exc:  # moderngl raises plain Exception when no EGL display can be made
-            raise RuntimeError(f"no OpenGL context (EGL) could be made: {exc}; install Mesa's EGL "
-                               "(scripts/setup.sh does)") from None
+        self._ctx = egl_context()
         self.width, self.height = int(width), int(height)
         self.background = np.asarray(background, dtype=np.float64) / 255.0
         ctx = self._ctx

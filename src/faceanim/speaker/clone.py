@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..render.context import egl_context
 from .appearance import Appearance, posture_points
 from .camera import from_rigid, moved, to_rigid
 
@@ -105,11 +106,7 @@ class CloneRenderer:
         self.width, self.height = int(width), int(height)
         self.triangles = model.triangles if appearance.triangles is None else appearance.triangles
         self._ctx = None
-        try:
-            ctx = moderngl.create_context(standalone=True, backend="egl")
-        except Exception as exc:  # moderngl raises plain Exception when no EGL display can be made
-            raise RuntimeError(f"no OpenGL context (EGL) could be made: {exc}; install Mesa's EGL "
-                               "(scripts/setup.sh does)") from None
+        ctx = egl_context("the clone's renderer")
         self._ctx = ctx
         self._fbo = ctx.framebuffer(color_attachments=[ctx.renderbuffer((self.width, self.height), 4)],
                                     depth_attachment=ctx.depth_renderbuffer((self.width, self.height)))

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..render.context import egl_context
 from ..validation import as_array, as_index_array
 
 __all__ = ["NumpyLipRaster", "GlLipRaster", "RASTERS", "prefilter"]
@@ -253,10 +254,7 @@ class GlLipRaster(_Raster):
             raise ImportError("the GL rasteriser needs moderngl: pip install 'faceanim[render]'") from None
         if len(self.textures) > 8:
             raise ValueError(f"the GL rasteriser mixes at most 8 textures, got {len(self.textures)}")
-        try:
-            self._ctx = moderngl.create_context(standalone=True, backend="egl")
-        except Exception as exc:  # moderngl raises plain Exception when no EGL display can be made
-            raise RuntimeError(f"no OpenGL context (EGL) could be made: {exc}") from None
+        self._ctx = egl_context("the GL rasteriser")
         ctx = self._ctx
         self._fbo = ctx.framebuffer(color_attachments=[ctx.renderbuffer((self.width, self.height), 1, dtype="f4")])
         self._program = ctx.program(vertex_shader=_GL_VERTEX, fragment_shader=_GL_FRAGMENT)
