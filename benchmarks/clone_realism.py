@@ -50,7 +50,7 @@ def all_frames(path) -> list[np.ndarray]:
 
 
 def mouth_box(landmarks, width: int, height: int) -> tuple[slice, slice]:
-    from faceanim.speaker.appearance import LIP_OUTER
+    from faceanim.landmarks import LIP_OUTER
 
     xy = landmarks[list(LIP_OUTER), :2] * [width, height]
     (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)

@@ -5,7 +5,7 @@
 For each face box in ``../shared/data/dlib_faces/training_with_face_landmarks.xml`` (4 PASCAL VOC
 photos, 18 faces, points from dlib's 68-point model), MediaPipe's Face Landmarker runs on the box's
 surroundings (faces in these photos are small: 15-48 px between the eyes), its 478 points are mapped to the 68 layout
-(``faceanim.capture.landmarks.IBUG68_LANDMARK``), and the normalised mean error is taken: mean point
+(``faceanim.landmarks.IBUG68_LANDMARK``), and the normalised mean error is taken: mean point
 distance over the distance between the outer eye corners (points 36 and 45), the usual iBUG measure.
 Writes ``benchmarks/results/landmarks_dlib.md``.
 """
@@ -40,8 +40,8 @@ def mapped_landmarks(rgb, box):
     """MediaPipe's face in a crop around ``box`` (three times its size, resized to 256 px), as 68 pixels."""
     from PIL import Image
 
-    from faceanim.capture.landmarks import IBUG68_LANDMARK
     from faceanim.capture.tracker import FaceTracker, TrackerOptions
+    from faceanim.landmarks import IBUG68_LANDMARK
 
     left, top, width, height = box
     cx, cy, half = left + width / 2, top + height / 2, 1.5 * max(width, height)

@@ -19,7 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from ict_scenario import ict_missing, load_ict  # noqa: E402
 from report import publish  # noqa: E402
 
-from faceanim.capture.landmarks import IBUG68_LANDMARK  # noqa: E402
+from faceanim.landmarks import IBUG68_LANDMARK  # noqa: E402
 from faceanim.retarget.placement import place_landmarks  # noqa: E402
 
 GROUPS = {"jaw": (0, 17), "brows": (17, 27), "nose": (27, 36), "eyes": (36, 48), "lips": (48, 68)}

@@ -98,7 +98,7 @@ def curves(seed: int) -> np.ndarray:
 
 def rig_target(ict, face):
     """B's target with MediaPipe's points placed on ICT's mean face, carried by vertex identity."""
-    from faceanim.capture.landmarks import FEATURE_POINT_LANDMARK
+    from faceanim.landmarks import FEATURE_POINT_LANDMARK
     from faceanim.retarget.placement import place_landmarks
     from faceanim.target import Target, measure_fapu
 
@@ -116,7 +116,7 @@ _cache: dict = {}
 
 def exact_motion(target, truth, weights):
     """The Motion of the target's points under the exact faces (no video), as a capture."""
-    from faceanim.capture.headframe import landmark_names
+    from faceanim.landmarks import landmark_names
     from faceanim.motion import Motion
 
     names = landmark_names(478)

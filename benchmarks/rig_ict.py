@@ -40,8 +40,8 @@ from ict_scenario import load_ict as load_model  # noqa: E402
 from report import RESULTS, publish  # noqa: E402
 from transfer_ict import parse_seeds  # noqa: E402
 
-from faceanim.capture.landmarks import IBUG68_LANDMARK  # noqa: E402
 from faceanim.errors import InputError  # noqa: E402
+from faceanim.landmarks import IBUG68_LANDMARK  # noqa: E402
 from faceanim.rig import ARKIT_NAMES, EMPTY_IN_ICT, ICT_SHAPES, load_ict, make_arkit_rig  # noqa: E402
 from faceanim.target import Target  # noqa: E402
 

@@ -177,8 +177,8 @@ def exact_run(model, A, B, deltas):
     """B moved by A's true motion at MediaPipe's points placed on A (no video): what a perfect tracker
     would give. Its error is the retargeting's own share; the rest of a tracked run's is tracking's."""
     from faceanim import pipeline
-    from faceanim.capture.headframe import landmark_names
     from faceanim.geometry import write_mesh
+    from faceanim.landmarks import landmark_names
     from faceanim.motion import Motion
     from faceanim.mpeg4 import fapu_from_points
     from faceanim.retarget.follow import animate_motion

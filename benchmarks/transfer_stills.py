@@ -4,7 +4,7 @@
 
 Source: the ICT mean face (full head). Targets: :func:`faceanim.portrait.avatar_target` (the default
 portrait's face) and :func:`faceanim.generic.generic_target`, each paired with ICT through the 68
-iBUG points (MediaPipe's ids from :data:`faceanim.capture.landmarks.IBUG68_LANDMARK`). The clone
+iBUG points (MediaPipe's ids from :data:`faceanim.landmarks.IBUG68_LANDMARK`). The clone
 method registers ICT onto each target (non-rigid ICP with the face's contours) and carries each
 expression across. Writes one PNG per target (neutral, then each expression, shaded, front view) to
 ``benchmarks/results/`` and a table of turned-over triangles (:func:`faceanim.geometry.quality.turned_over`)
@@ -24,8 +24,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from ict_scenario import ict_missing, load_ict  # noqa: E402
 from report import RESULTS, publish  # noqa: E402
 
-from faceanim.capture.landmarks import IBUG68_LANDMARK  # noqa: E402
 from faceanim.geometry.quality import turned_over  # noqa: E402
+from faceanim.landmarks import IBUG68_LANDMARK  # noqa: E402
 from faceanim.retarget import ControlPairs, DenseTransfer  # noqa: E402
 
 DEFAULT = "jawOpen,mouthSmile_L,eyeBlink_L,mouthFunnel,browInnerUp_L"

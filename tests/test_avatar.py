@@ -4,11 +4,11 @@ from conftest import khronos_report, shared
 
 from faceanim import pipeline, portrait
 from faceanim.capture.avatar import AVATAR_PARTS
-from faceanim.capture.landmarks import FEATURE_POINT_LANDMARK
 from faceanim.errors import InputError
 from faceanim.geometry import read_mesh
 from faceanim.geometry.meshio import glb_extras
 from faceanim.geometry.topology import boundary_loops
+from faceanim.landmarks import FEATURE_POINT_LANDMARK
 from faceanim.mpeg4 import fap_table
 from faceanim.mpeg4.fapfile import read_fap
 from faceanim.retarget.decode import animate_faps

@@ -8,12 +8,12 @@ from conftest import shared
 
 from faceanim.capture.headframe import restabilise
 from faceanim.capture.jaw import _carried_share, correct_jaw_depth, jaw_carried
-from faceanim.capture.landmarks import FEATURE_POINT_LANDMARK, IBUG68_LANDMARK
 from faceanim.capture.metric import canonical_face, metric_geometry
 from faceanim.capture.neutral import parse_neutral, relaxed_window
 from faceanim.capture.smoothing import OneEuro, jitter, one_euro
 from faceanim.errors import InputError
 from faceanim.geometry.align import batch_procrustes, robust_procrustes, weighted_procrustes
+from faceanim.landmarks import FEATURE_POINT_LANDMARK, IBUG68_LANDMARK
 from faceanim.motion import EYEBALL_RADIUS_ES0, Motion, clip_to_range, head_angles, motion_to_faps
 from faceanim.mpeg4 import Fapu, fap_table, feature_points
 
@@ -161,7 +161,7 @@ def test_head_angles_follow_mpeg4_words():
 
 
 def test_the_canonical_face_and_landmark_tables_are_frozen():
-    from faceanim.capture.landmarks import FEATURE_POINT_LANDMARK
+    from faceanim.landmarks import FEATURE_POINT_LANDMARK
 
     face = canonical_face()
     for name in ("vertices", "triangles", "uv", "weights"):

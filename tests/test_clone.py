@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from conftest import shared
 
-from faceanim.capture.headframe import landmark_names
 from faceanim.capture.metric import canonical_face
 from faceanim.cli import main
 from faceanim.errors import FileFormatError, InputError
+from faceanim.landmarks import landmark_names
 from faceanim.motion import Motion
 from faceanim.mpeg4 import Fapu
 from faceanim.speaker import build_model, mobile_names, read_speaker, write_speaker

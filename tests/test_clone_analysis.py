@@ -8,9 +8,9 @@ import pytest
 from conftest import shared
 from scipy.ndimage import gaussian_filter
 
-from faceanim.capture.headframe import landmark_names
 from faceanim.cli import main
 from faceanim.errors import InputError
+from faceanim.landmarks import landmark_names
 from faceanim.mpeg4 import Fapu
 from faceanim.speaker import read_speaker, write_speaker
 from faceanim.speaker.analysis import MAX_TRIANGLES, CloneAnalyser, analysis_mesh, pose_matrix

@@ -54,8 +54,8 @@ def _small_ict(folder):
 def made(tmp_path_factory):
     """The rig made by ``faceanim rig`` on ICT's face region in metres, its vertices shuffled, the 68
     iBUG points given (by MediaPipe index) with the MPEG-4 points."""
-    from faceanim.capture.landmarks import IBUG68_LANDMARK
     from faceanim.geometry import Mesh, write_mesh
+    from faceanim.landmarks import IBUG68_LANDMARK
     from faceanim.mpeg4.multipie import MULTIPIE68_OF_FEATURE_POINT
     from faceanim.rigging import make_rig
 

@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from .capture.avatar import opened_triangles
-from .capture.headframe import landmark_names
 from .capture.metric import canonical_face
 from .geometry.mesh import Mesh
+from .landmarks import landmark_names
 from .target import Target
 from .validation import as_array
 
@@ -23,7 +23,7 @@ __all__ = ["generic_target", "landmark_target"]
 
 def landmark_target(points) -> Target:
     """The canonical mesh at ``points (468, 3)`` (head frame, MPEG-4 axes), with its control points
-    named as the capture names them (:func:`~faceanim.capture.headframe.landmark_names`)."""
+    named as the capture names them (:func:`~faceanim.landmarks.landmark_names`)."""
     points = as_array(points, "points", shape=(468, 3))
     mesh = Mesh(points, opened_triangles(canonical_face().triangles))
     names = landmark_names(468)

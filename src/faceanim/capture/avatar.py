@@ -14,7 +14,7 @@ import numpy as np
 
 from ..geometry.mesh import Mesh
 from ..geometry.topology import boundary_loops
-from .landmarks import FEATURE_POINT_LANDMARK
+from ..landmarks import FEATURE_POINT_LANDMARK, LIP_INNER
 from .metric import canonical_face, metric_geometry
 
 __all__ = ["AVATAR_PARTS", "face_from_landmarks", "avatar_points", "opened_triangles"]
@@ -25,7 +25,7 @@ _EYE_OPENINGS = {
     "left": (263, 466, 388, 387, 386, 385, 384, 398, 362, 382, 381, 380, 374, 373, 390, 249),
 }
 _IRIS_CENTRE = {"right": 468, "left": 473}
-_MOUTH_OPENING = (78, 191, 80, 81, 82, 13, 312, 311, 310, 415, 308, 324, 318, 402, 317, 14, 87, 178, 88, 95)
+_MOUTH_OPENING = LIP_INNER
 
 AVATAR_PARTS = ("skin", "eyes", "mouth", "teeth")
 

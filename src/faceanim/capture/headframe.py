@@ -6,18 +6,18 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry.align import robust_procrustes
+from ..landmarks import FEATURE_POINT_LANDMARK, landmark_names
 from ..motion import Motion
 from ..mpeg4 import fapu_from_points
 from .browscores import BrowDrive
 from .jaw import correct_jaw_depth
-from .landmarks import FEATURE_POINT_LANDMARK
 from .metric import canonical_face, metric_geometry_frames
 from .neutral import relaxed_window
 from .smoothing import OneEuro, OneEuroFilter
 from .track import Track
 
 __all__ = ["head_frame", "head_frame_into", "settle", "displacements_from", "mouth_gap", "track_to_motion",
-           "landmark_names", "restabilise", "rest_window", "brow_drive", "DEFAULT_SMOOTHING"]
+           "restabilise", "rest_window", "brow_drive", "DEFAULT_SMOOTHING"]
 
 DEFAULT_SMOOTHING = OneEuro()
 
@@ -30,15 +30,6 @@ _BLOCK = 256  # frames fitted at once: the fits' temporaries stay a few MB howev
 # with full weights they pitched the head by 1.5-3.5 degrees on ICT renders of a still head, and the
 # whole face seemed to move (benchmarks/roundtrip_ict.py).
 _SKULL_SPREAD = 0.1
-
-
-def landmark_names(count: int) -> tuple[str, ...]:
-    """Names of MediaPipe's landmarks: the MPEG-4 feature point where one sits, else ``mp<i>``."""
-    names = [f"mp{i}" for i in range(count)]
-    for point, index in FEATURE_POINT_LANDMARK.items():
-        if index < count:
-            names[index] = point
-    return tuple(names)
 
 
 def head_frame(track: Track):

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .landmarks import FEATURE_POINT_LANDMARK
+from ..landmarks import FEATURE_POINT_LANDMARK
 from .metric import Camera
 from .track import Track
 from .video import open_frames

@@ -18,13 +18,13 @@ import numpy as np
 
 from ..errors import InputError
 from ..framestore import FrameStore
+from ..landmarks import landmark_names
 from ..motion import Motion
 from .headframe import (
     DEFAULT_SMOOTHING,
     brow_drive,
     displacements_from,
     head_frame_into,
-    landmark_names,
     rest_window,
     settle,
 )

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..capture.landmarks import FEATURE_POINT_LANDMARK
 from ..errors import InputError
 from ..geometry.mesh import Mesh
 from ..geometry.project import project_points
 from ..geometry.topology import component_labels
+from ..landmarks import FEATURE_POINT_LANDMARK, LIP_INNER
 from ..render.camera import front_camera
 from ..target import Target, measure_fapu
 
@@ -24,8 +24,8 @@ __all__ = ["place_landmarks", "auto_target"]
 # the tracker expects. Lit from the camera, an untextured face has flat eye sockets, and MediaPipe
 # placed the ICT neutral's brows and upper lids 0.9 cm too low (benchmarks/placement_ict.py).
 _LIGHT = (0.0, 1.0, 1.0)
-_UPPER_INNER_LIP = (191, 80, 81, 82, 13, 312, 311, 310, 415)
-_LOWER_INNER_LIP = (95, 88, 178, 87, 14, 317, 402, 318, 324)
+_UPPER_INNER_LIP = LIP_INNER[1:10]  # between the corners 78 and 308
+_LOWER_INNER_LIP = LIP_INNER[11:]
 _IRIS_START = 468  # 468-472 and 473-477: the irises
 _MIRROR_PAIRS = ((33, 263), (133, 362), (61, 291), (70, 300), (234, 454), (159, 386), (145, 374))
 

@@ -12,7 +12,7 @@ similarity fitted between two different faces turns and scales them by the faces
 +y up, +z out of the face, as automatic placement needs.
 
 The control pairs are the 68 iBUG / Multi-PIE points, on the target MediaPipe's points of that layout
-(``mp<i>`` through :data:`~faceanim.capture.landmarks.IBUG68_LANDMARK`). Where the target's points
+(``mp<i>`` through :data:`~faceanim.landmarks.IBUG68_LANDMARK`). Where the target's points
 were placed by MediaPipe (all 468 face points present: automatic placement, or a faceanim ``.glb``
 that carries them), ICT's are placed by MediaPipe too (:func:`~faceanim.retarget.placement.place_landmarks`
 on ICT's neutral head), so both sides carry the tracker's own bias: on the tuning draw of
@@ -29,9 +29,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..capture.landmarks import IBUG68_LANDMARK
 from ..errors import InputError
 from ..geometry.align import weighted_procrustes
+from ..landmarks import IBUG68_LANDMARK
 from ..mpeg4.multipie import MULTIPIE68_OF_FEATURE_POINT, THESIS_16
 from ..retarget.transfer import ControlPairs, DenseTransfer
 from ..target import Target

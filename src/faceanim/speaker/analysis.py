@@ -26,6 +26,7 @@ from scipy.optimize import minimize
 from scipy.spatial import Delaunay
 
 from ..errors import InputError
+from ..landmarks import landmark_names
 from ..validation import as_array, as_index_array
 from .lipraster import RASTERS, GlLipRaster, NumpyLipRaster, prefilter
 from .model import SpeakerModel
@@ -60,8 +61,6 @@ _RIGID_STEPS = np.array([_STEP_ROTATION] * 3 + [_STEP_TRANSLATION] * 3)
 
 
 def _mp_name(index: int) -> str:
-    from ..capture.headframe import landmark_names
-
     return landmark_names(478)[index]
 
 

@@ -23,10 +23,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError
+from ..landmarks import LIP_INNER, LIP_OUTER
 from ..validation import as_array, as_index_array
 from .colour import ColourModel
 
-__all__ = ["Appearance", "APPEARANCE_VERSION", "TEXTURE_SIZE", "KEY_NAMES", "LIP_OUTER", "LIP_INNER",
+__all__ = ["Appearance", "APPEARANCE_VERSION", "TEXTURE_SIZE", "KEY_NAMES",
            "lip_indices", "posture_points", "blend_weights", "influence_of", "write_appearance",
            "read_appearance", "has_appearance"]
 
@@ -34,9 +35,6 @@ APPEARANCE_VERSION = 1
 TEXTURE_SIZE = 512
 KEY_NAMES = ("rest", "open", "rounded")
 
-# MediaPipe's lip contours (landmark numbers), each closed, in order around the mouth.
-LIP_OUTER = (61, 185, 40, 39, 37, 0, 267, 269, 270, 409, 291, 375, 321, 405, 314, 17, 84, 181, 91, 146)
-LIP_INNER = (78, 191, 80, 81, 82, 13, 312, 311, 310, 415, 308, 324, 318, 402, 317, 14, 87, 178, 88, 95)
 
 
 def lip_indices(names, landmarks) -> tuple[np.ndarray, np.ndarray]:

@@ -1,4 +1,9 @@
-"""Where MediaPipe's face-mesh landmarks sit in other layouts: MPEG-4 feature points and iBUG-68.
+"""MediaPipe's face-mesh layout: which landmark is which feature point, iBUG-68 point or lip contour.
+
+Pure tables and the names they give, with no tracker behind them: the capture names its landmarks
+with them, and the rooms that meet MediaPipe's mesh elsewhere (placing points on a target, the
+generic face, the rigs, the speaker clone's lips) read the same tables instead of importing the
+capture.
 
 Indices are into MediaPipe's 478-point face mesh with iris refinement (468-472 the subject's right
 iris, centre 468; 473-477 the left iris, centre 473). MediaPipe's canonical face has +x on the
@@ -12,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from types import MappingProxyType
 
-__all__ = ["FEATURE_POINT_LANDMARK", "IBUG68_LANDMARK"]
+__all__ = ["FEATURE_POINT_LANDMARK", "IBUG68_LANDMARK", "LIP_OUTER", "LIP_INNER", "landmark_names"]
 
 FEATURE_POINT_LANDMARK: Mapping[str, int] = MappingProxyType({  # read-only: a shared table
     # chin and inner lips
@@ -50,3 +55,19 @@ IBUG68_LANDMARK: tuple[int, ...] = (
     61, 39, 37, 0, 267, 269, 291, 405, 314, 17, 84, 181,
     78, 82, 13, 312, 308, 317, 14, 87,
 )
+
+# The lips' outer and inner contours (the inner one is the mouth opening), each closed and in order
+# around the mouth: from the subject's right corner over the upper lip, then back along the lower lip.
+LIP_OUTER: tuple[int, ...] = (61, 185, 40, 39, 37, 0, 267, 269, 270, 409, 291, 375, 321, 405, 314, 17, 84, 181, 91,
+                              146)
+LIP_INNER: tuple[int, ...] = (78, 191, 80, 81, 82, 13, 312, 311, 310, 415, 308, 324, 318, 402, 317, 14, 87, 178, 88,
+                              95)
+
+
+def landmark_names(count: int) -> tuple[str, ...]:
+    """Names of MediaPipe's first ``count`` landmarks: the MPEG-4 feature point where one sits, else ``mp<i>``."""
+    names = [f"mp{i}" for i in range(count)]
+    for point, index in FEATURE_POINT_LANDMARK.items():
+        if index < count:
+            names[index] = point
+    return tuple(names)
