@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 
 from faceanim.errors import FileFormatError, InputError
 from faceanim.mpeg4 import FAP_COUNT, fap_table
-from faceanim.mpeg4.fapcoder import decode_faps, encode_faps, fap_psnr, read_fba, write_fba
+from faceanim.mpeg4.fapcoder import FbaDecoder, decode_faps, encode_faps, fap_psnr, read_fba, read_fba_pieces, write_fba
 from faceanim.mpeg4.fapfile import read_fap
 from faceanim.mpeg4.fapstream import FapStream
 
@@ -216,7 +216,7 @@ def test_every_single_byte_change_is_refused(joy_fba):
 
 @pytest.mark.parametrize("change, match", [
     (lambda d: b"RIFF" + d[4:], "not a faceanim FAP stream"),
-    (lambda d: d[:4] + bytes([2]) + d[5:], "version 2 .*reads version 1"),
+    (lambda d: d[:4] + bytes([3]) + d[5:], "version 3 .*reads versions 1 and 2"),
     (lambda d: d + b"\0", "end check"),
     (lambda d: b"", "is empty"),
 ])
@@ -289,6 +289,113 @@ def test_read_fba_10000_mutated_files_zero_undeclared_errors(tmp_path, program):
     assert len(stream) >= 1 and np.isfinite(stream.values).all() and not stream.mask[:, :2].any()
 
 
+# ---- decoding as the bytes arrive (version 2's packets)
+
+
+def _joined(pieces) -> FapStream:
+    pieces = [p for p in pieces if p is not None]
+    return FapStream(np.concatenate([p.values for p in pieces]), np.concatenate([p.mask for p in pieces]),
+                     pieces[0].fps, frame_numbers=np.concatenate([p.frame_numbers for p in pieces]),
+                     name=pieces[0].name)
+
+
+def _same(a: FapStream, b: FapStream) -> None:
+    np.testing.assert_array_equal(a.values, b.values)
+    np.testing.assert_array_equal(a.mask, b.mask)
+    np.testing.assert_array_equal(a.frame_numbers, b.frame_numbers)
+    assert (a.fps, a.name) == (b.fps, b.name)
+
+
+@pytest.mark.parametrize("packet", [1, 3, 5, 1000])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_chunked_feeding_equals_whole_file_decoding(packet, seed):
+    """Any cutting of the bytes into pieces decodes to the whole file's frames, in order, each packet's
+    frames out as soon as its last byte is in (never later, never before)."""
+    rng = np.random.default_rng(seed)
+    stream = synthetic(T=60, seed=seed, holes=0.2, faceless=0.1)
+    if seed == 2:  # frame numbers with gaps and repeats: sent per packet
+        numbers = np.cumsum(rng.integers(0, 3, size=60))
+        stream = FapStream(stream.values, stream.mask, 25.0, frame_numbers=numbers, name="gappy")
+    data = encode_faps(stream, quant=2.0, packet=packet)
+    whole = decode_faps(data)
+    for sizes in ([1], [7], [len(data)], list(rng.integers(1, 40, size=200))):
+        decoder, pieces, at, k = FbaDecoder("x.fba"), [], 0, 0
+        while at < len(data):
+            n = int(sizes[k % len(sizes)])
+            piece = decoder.feed(data[at:at + n])
+            at, k = at + n, k + 1
+            if piece is not None:
+                pieces.append(piece)
+                assert decoder.frames_done == len(_joined(pieces)) and (
+                    decoder.frames_done % packet == 0 or decoder.frames_done == len(stream))
+        assert decoder.close() is None
+        _same(_joined(pieces), whole)
+    # one byte at a time: the frames of a packet come out on its last byte
+    decoder, done = FbaDecoder(), []
+    for byte in data:
+        piece = decoder.feed(bytes([byte]))
+        done.append(decoder.frames_done)
+    assert sorted(set(done)) == sorted({0, *range(packet, 60, packet), 60})
+    decoder.close()
+
+
+def test_a_truncated_stream_is_refused_in_one_line_after_its_frames():
+    stream = synthetic(T=40, seed=3)
+    data = encode_faps(stream, quant=1.0, packet=4)
+    for cut in range(1, len(data), 5):
+        decoder = FbaDecoder("cut.fba")
+        try:
+            decoder.feed(data[:cut])
+            decoder.close()
+        except FileFormatError as exc:
+            assert str(exc).startswith("cut.fba: ") and "\n" not in str(exc)
+            continue
+        raise AssertionError(f"a stream cut at {cut} of {len(data)} bytes was not refused")
+    decoder = FbaDecoder("cut.fba")
+    assert len(decoder.feed(data[:len(data) * 2 // 3])) > 0
+    with pytest.raises(FileFormatError, match=r"^cut.fba: is truncated or corrupt \(it ends after frame \d+ of 40\)$"):
+        decoder.close()
+    with pytest.raises(FileFormatError, match="bytes after its end check"):
+        FbaDecoder("long.fba").feed(data + b"\0")
+
+
+def test_packets_cost_a_few_bytes_and_do_not_change_the_values():
+    stream = synthetic(T=250, seed=4)
+    sizes = {p: len(encode_faps(stream, quant=1.0, packet=p)) for p in (1, 5, 250)}
+    for p in (1, 5):
+        _same(decode_faps(encode_faps(stream, quant=1.0, packet=p)), decode_faps(encode_faps(stream, packet=250)))
+    assert sizes[250] < sizes[5] < sizes[1] < sizes[250] + 250 * 8  # at most ~8 bytes a packet
+
+
+def test_a_version_1_file_still_reads_whole_and_streamed(tmp_path):
+    """84 bytes written by the version 1 coder (commit 2b92feb): 12 frames of FAPs 3 and 51."""
+    data = bytes.fromhex(
+        "6661464201010000000000003940000000000000f03f0c000000200000000000200000027631000000000280c0030501"
+        "0100060106000000adef0180a6be4c287f62f9bbdb69db97baeb0cdb04cfa0a829a7edab")
+    stream = decode_faps(data, source="old.fba")
+    assert stream.name == "v1" and len(stream) == 12 and stream.fps == 25.0
+    assert stream.values[:, 2].tolist() == [0, 36, 72, 112, 148, 184, 224, 260, 296, 332, 368, 408]
+    assert stream.mask[:, 50].tolist() == [True] * 5 + [False] + [True] * 6
+    (tmp_path / "old.fba").write_bytes(data)
+    _same(_joined(list(read_fba_pieces(tmp_path / "old.fba", chunk=7))[1:]), stream)
+    with pytest.raises(FileFormatError, match="end check"):
+        decode_faps(data[:-1] + b"\0")
+
+
+def test_read_fba_pieces_yields_the_header_then_the_frames(tmp_path):
+    stream = synthetic(T=90, seed=5)
+    write_fba(tmp_path / "a.fba", stream, quant=1.5, packet=10)
+    pieces = read_fba_pieces(tmp_path / "a.fba", chunk=64)
+    decoder = next(pieces)
+    assert (decoder.frame_count, decoder.fps, decoder.quant) == (90, 25.0, 1.5)
+    rest = list(pieces)
+    assert len(rest) > 2 and all(len(p) % 10 == 0 for p in rest)
+    _same(_joined(rest), read_fba(tmp_path / "a.fba"))
+    (tmp_path / "b.fba").write_bytes((tmp_path / "a.fba").read_bytes()[:-30])
+    with pytest.raises(FileFormatError, match="b.fba: is truncated or corrupt"):
+        list(read_fba_pieces(tmp_path / "b.fba", chunk=64))
+
+
 # ---- the command line: faceanim fap-compress / fap-decompress
 
 
@@ -349,6 +456,8 @@ def test_missing_truncated_and_misnamed_inputs_are_one_line_and_nothing_is_writt
          "use a coarser quant"),
         (("fap-decompress", tmp_path / "cut.fba", "-o", tmp_path / "x.fap", "--speaker", tmp_path / "none.npz"),
          "none.npz"),
+        (("fap-compress", shared("xface", "Faps", "test.fap"), "-o", tmp_path / "x.fba", "--packet", "0"),
+         "--packet 0: give a whole number of frames from 1"),
     ]
     for argv, match in cases:
         code, out, err = run_cli(capsys, *argv)
@@ -400,6 +509,17 @@ def test_decompress_through_a_speaker_model_fills_in_the_faps_not_sent(tmp_path,
     # and through the model's temporal prior, which a model file of version 2 carries
     expected = read_speaker(tmp_path / "s.npz").regularise(read_fba(tmp_path / "s.fba"), quant=1.0, temporal=True)
     np.testing.assert_allclose(back.values, np.round(expected.values), atol=1)
+    # decoded as it is read, a few bytes at a time: the same file, the filter's state carried across pieces
+    from faceanim.compression import fap_decompress
+
+    fap_decompress(tmp_path / "s.fba", tmp_path / "bytes.fap", speaker=tmp_path / "s.npz", chunk=5)
+    assert (tmp_path / "bytes.fap").read_bytes() == (tmp_path / "out.fap").read_bytes()
+    # cut short: refused in one line after the frames it held were decoded, and nothing written
+    (tmp_path / "cut.fba").write_bytes((tmp_path / "s.fba").read_bytes()[:-9])
+    code, out, err = run_cli(capsys, "fap-decompress", tmp_path / "cut.fba", "-o", tmp_path / "cut.fap", "--speaker",
+                             tmp_path / "s.npz")
+    assert code == 2 and err.count("\n") == 1 and "cut.fba: is truncated or corrupt" in err
+    assert not (tmp_path / "cut.fap").exists()
     code, out, err = run_cli(capsys, "fap-decompress", tmp_path / "s.fba", "-o", tmp_path / "alone.fap", "--speaker",
                              tmp_path / "s.npz", "--frame-by-frame")
     assert code == 0, err
@@ -434,9 +554,9 @@ def test_decompress_through_a_version_1_speaker_model_decodes_frame_by_frame(tmp
         assert int(archive["version"]) == 1
     write_fba(tmp_path / "s.fba", model.to_faps(rng.normal(size=(30, 6)), fps=25.0), quant=2.0,
               faps=[3, 14, 16, 17, 51, 52, 53, 54])
-    back = fap_decompress(tmp_path / "s.fba", tmp_path / "out.fap", speaker=tmp_path / "old.npz")
+    assert fap_decompress(tmp_path / "s.fba", tmp_path / "out.fap", speaker=tmp_path / "old.npz").frames == 30
     expected = read_speaker(tmp_path / "old.npz").regularise(read_fba(tmp_path / "s.fba"), quant=2.0)
-    np.testing.assert_allclose(back.values, expected.values)
+    np.testing.assert_array_equal(read_fap(tmp_path / "out.fap").values, np.rint(expected.values))
     with pytest.raises(InputError, match="no temporal prior"):
         fap_decompress(tmp_path / "s.fba", tmp_path / "out2.fap", speaker=tmp_path / "old.npz", temporal=True)
     assert not (tmp_path / "out2.fap").exists()

@@ -280,6 +280,31 @@ def test_the_temporal_prior_starts_afresh_after_a_frame_with_too_few_faps():
     np.testing.assert_allclose(a[21], model.to_parameters(tail)[0], atol=1e-12)  # its own solve, no past
 
 
+@pytest.mark.parametrize("temporal", [False, True])
+@pytest.mark.parametrize("quant", [None, 2.0])
+def test_the_interpreter_on_pieces_equals_regularise_on_the_whole(temporal, quant):
+    """A stream that arrives in pieces (a decoder's packets), with subsets changing and frames without
+    a face, some cut across the pieces' bounds: the pieces joined are the whole stream regularised."""
+    motion, model = smooth_synthetic()
+    truth = noisy(model.to_faps(np.random.default_rng(11).normal(size=(90, 6))), sigma=5.0)
+    mask = truth.mask.copy()
+    mask[30:45] &= np.isin(np.arange(68) + 1, EIGHT)
+    mask[[12, 13, 60]] = False
+    stream = FapStream(truth.values, mask, truth.fps)
+    whole = model.regularise(stream, quant=quant, temporal=temporal)
+    interpret = model.interpreter(quant=quant, temporal=temporal)
+    bounds = [0, 1, 12, 13, 14, 29, 44, 61, 90]
+    pieces = [interpret(FapStream(stream.values[a:b], stream.mask[a:b], stream.fps, frame_numbers=np.arange(a, b)))
+              for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    interpret.finish()
+    np.testing.assert_allclose(np.concatenate([p.values for p in pieces]), whole.values, atol=1e-9)
+    np.testing.assert_array_equal(np.concatenate([p.mask for p in pieces]), whole.mask)
+    lonely = model.interpreter(temporal=temporal)
+    lonely(subset(truth, [3, 14, 16, 17, 51]))  # a piece with too few FAPs passes through ...
+    with pytest.raises(InputError, match="carries at most 5 of the speaker model's 34 FAPs"):
+        lonely.finish()  # ... but a whole stream of them is refused, as regularise refuses it
+
+
 def test_a_subset_too_small_on_every_frame_is_refused_in_one_line():
     motion, _, _ = synthetic(count=6)
     model = build_model(motion, parameters=6)

@@ -320,6 +320,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="scale of the quantiser steps QP x Q (default 1; larger is coarser and smaller)")
     p.add_argument("--faps", metavar="LIST", help="the FAPs to send, like 3,14,16,17,51-54 (default: all the file "
                                                   "carries, 3-68)")
+    p.add_argument("--packet", type=int, metavar="FRAMES",
+                   help="frames per packet, the delay of a decoder that reads the stream as it arrives (default: "
+                        "1 s of frames; a packet costs ~5 bytes)")
 
     p = commands.add_parser("fap-decompress", help="decode a .fba back into a .fap",
                             description="Decode IN.fba (faceanim fap-compress) into a .fap; with --speaker, the "
@@ -577,15 +580,14 @@ def _run(args, progress) -> str:
     if args.command == "fap-compress":
         from .compression import fap_compress
 
-        result = fap_compress(args.source, args.output, quant=args.quant, faps=args.faps)
+        result = fap_compress(args.source, args.output, quant=args.quant, faps=args.faps, packet=args.packet)
         return f"wrote {args.output}: {result.summary()}"
     if args.command == "fap-decompress":
         from .compression import fap_decompress
 
-        stream = fap_decompress(args.source, args.output, speaker=args.speaker,
+        result = fap_decompress(args.source, args.output, speaker=args.speaker,
                                 temporal=False if args.frame_by_frame else None)
-        active = int(stream.mask.any(axis=0).sum())
-        return f"wrote {args.output}: {len(stream)} frames, {active} FAPs" + (
+        return f"wrote {args.output}: {result.frames} frames, {len(result.faps)} FAPs" + (
             f", interpreted through {args.speaker}" if args.speaker else "")
     if args.command == "batch":
         from .dataset import run_batch

@@ -15,10 +15,9 @@ import numpy as np
 
 from .errors import InputError
 from .mpeg4 import FAP_COUNT
-from .mpeg4.fapstream import FapStream
 from .outputs import check_outputs
 
-__all__ = ["CompressionResult", "fap_compress", "fap_decompress", "parse_fap_list"]
+__all__ = ["CompressionResult", "DecompressionResult", "fap_compress", "fap_decompress", "parse_fap_list"]
 
 
 @dataclass(frozen=True)
@@ -81,7 +80,7 @@ def _quant(quant) -> float:
     return value
 
 
-def fap_compress(source, output, *, quant: float = 1.0, faps=None) -> CompressionResult:
+def fap_compress(source, output, *, quant: float = 1.0, faps=None, packet: int | None = None) -> CompressionResult:
     """``faceanim fap-compress``: code the ``.fap`` at ``source`` into the ``.fba`` at ``output``.
 
     Parameters
@@ -90,6 +89,9 @@ def fap_compress(source, output, *, quant: float = 1.0, faps=None) -> Compressio
         Scale of the quantiser steps ``QP x quant``; positive.
     faps : str or sequence of int, optional
         The FAPs to send (``"3,14,16,17,51-54"`` or numbers 3-68); default every low-level FAP the file carries.
+    packet : int, optional
+        Frames per packet: the delay of a decoder reading the ``.fba`` as it arrives (default 1 s of
+        frames; each packet costs ~5 bytes).
 
     Returns
     -------
@@ -104,10 +106,12 @@ def fap_compress(source, output, *, quant: float = 1.0, faps=None) -> Compressio
     quant = _quant(quant)
     if isinstance(faps, str):
         faps = parse_fap_list(faps)
+    if packet is not None and (isinstance(packet, bool) or not isinstance(packet, int) or packet < 1):
+        raise InputError(f"--packet {packet}: give a whole number of frames from 1")
     check_outputs({"-o": (output, ".fba")}, inputs={"IN.fap": source})
     stream = read_fap(source)
     try:
-        data = encode_faps(stream, quant=quant, faps=faps)
+        data = encode_faps(stream, quant=quant, faps=faps, packet=packet)
     except ValueError as exc:  # a setting this stream cannot be coded with (a FAP list, a quant too fine)
         raise InputError(f"{source}: {exc}") from None
     decoded = decode_faps(data, source=str(output))
@@ -119,7 +123,8 @@ def fap_compress(source, output, *, quant: float = 1.0, faps=None) -> Compressio
     return CompressionResult(size=len(data), frames=len(stream), fps=stream.fps, faps=sent, quant=quant, psnr=psnr)
 
 
-def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None) -> FapStream:
+def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None,
+                   chunk: int = 1 << 16) -> DecompressionResult:
     """``faceanim fap-decompress``: decode the ``.fba`` at ``source`` into the ``.fap`` at ``output``;
     with ``speaker`` (a model file from ``faceanim speaker build``), the decoded FAPs are interpreted
     through it first (:meth:`~faceanim.speaker.SpeakerModel.regularise`: the model's FAPs regenerated
@@ -128,10 +133,16 @@ def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None
     default wherever the model has one (files from version 2 on), which
     ``benchmarks/fap_coding.py`` measures as at least as close at every rate; ``False``: frame by frame.
 
-    Returns the stream written (values as the ``.fap`` holds them before rounding to whole units).
+    The file is decoded as it is read, ``chunk`` bytes at a time, a packet of frames at a time
+    (:func:`~faceanim.mpeg4.fapcoder.read_fba_pieces`), interpreted and written out as they come: memory
+    does not grow with the stream. The ``.fap`` appears only once the ``.fba``'s end check has passed.
+
+    Returns a :class:`DecompressionResult` (frames, fps, the FAPs written); read the ``.fap`` for the
+    values (they are not held).
     """
-    from .mpeg4.fapcoder import fba_quant, read_fba
-    from .mpeg4.fapfile import write_fap
+    from .atomic import atomic_output
+    from .mpeg4.fapcoder import read_fba_pieces
+    from .mpeg4.fapfile import fap_frame_lines, fap_header_line
 
     output = Path(output)
     check_outputs({"-o": (output, ".fap")}, inputs={"IN.fba": source, "--speaker": speaker})
@@ -140,12 +151,36 @@ def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None
         from .speaker import read_speaker
 
         model = read_speaker(speaker)
-    stream = read_fba(source)
+    pieces = read_fba_pieces(source, chunk=chunk)
+    decoder = next(pieces)
+    interpret = None
     if model is not None:  # each FAP weighed by its quantiser step: the coding error is what is filtered
         if temporal is None:
             temporal = model.persistence is not None
-        stream = model.regularise(stream, quant=fba_quant(source), temporal=temporal)
-    if round(stream.fps) < 1:
-        raise InputError(f"{source}: {stream.fps:g} fps cannot be written as a .fap (whole frame rates from 1)")
-    write_fap(output, stream)
-    return stream
+        interpret = model.interpreter(quant=decoder.quant, temporal=temporal)
+    if round(decoder.fps) < 1:
+        raise InputError(f"{source}: {decoder.fps:g} fps cannot be written as a .fap (whole frame rates from 1)")
+    frames, active = 0, np.zeros(FAP_COUNT, dtype=bool)
+    with atomic_output(output) as tmp, open(tmp, "w", encoding="utf-8") as handle:
+        handle.write(fap_header_line(output, decoder.name, decoder.fps, decoder.frame_count) + "\n")
+        for piece in pieces:
+            if interpret is not None:
+                piece = interpret(piece)
+            handle.write("\n".join(fap_frame_lines(piece)) + "\n")
+            frames += len(piece)
+            active |= piece.mask.any(axis=0)
+        if interpret is not None:
+            interpret.finish()
+    return DecompressionResult(frames=frames, fps=decoder.fps, faps=tuple(int(c) + 1 for c in np.flatnonzero(active)))
+
+
+@dataclass(frozen=True)
+class DecompressionResult:
+    """What ``fap_decompress`` wrote: ``frames`` frames at ``fps`` carrying the FAPs ``faps`` (1-based)."""
+
+    frames: int
+    fps: float
+    faps: tuple[int, ...]
+
+    def __len__(self) -> int:
+        return self.frames

@@ -24,21 +24,31 @@ The coding follows ISO/IEC 14496-2's low-delay (predictive) FAP coding:
 FAPs 1 and 2 (visemes and expressions: selections, not curves) are not coded: ``faps=None`` leaves
 them out, and asking for them is refused.
 
-The container (``.fba``, faceanim's own, **not** the MPEG-4 FBA bit syntax), little-endian::
+The container (``.fba``, faceanim's own, **not** the MPEG-4 FBA bit syntax), little-endian, version 2::
 
     magic      4 bytes  b"faFB"
-    version    u8       1
+    version    u8       2
     flags      u8       bit 0: frame numbers are first, first + 1, ...
     fps        f64
     quant      f64
     frames     u32      T, from 1 to 2**22
     faps       9 bytes  the 68 sent-FAP flags, FAP 1 first, MSB first (numpy.packbits); FAPs 1-2 never set
     name       u8 length, then that many bytes of UTF-8 (one token)
-    frame numbers       flag set: u32 first frame; else T x u32 (never decreasing, < 2**31)
-    masks      varint P, then P patterns of ceil(J/8) bytes (J sent FAPs, packbits); varint R, then R
-               runs (varint length >= 1, varint pattern index); the lengths sum to T
-    payload    u32 N, then N u32 words of the range coder
+    first      u32      the first frame's number (flag set only)
+    packets, until they hold T frames, each:
+      runs     varint R >= 1, then R runs of frames sharing a mask: varint (length << 1 | same), then,
+               unless ``same`` (the previous run's pattern again, across packets), the pattern:
+               ceil(J/8) bytes (J sent FAPs, packbits)
+      numbers  flag clear: one u32 per frame of the packet (never decreasing, < 2**31)
+      payload  varint N, then N u32 words: the packet's symbols, range coded and sealed
     check      u32 CRC-32 of every byte before it
+
+A packet is decodable alone once it has arrived: its range coder is sealed at its end (the adaptive
+models' state carries over, so a packet costs only its header and the sealing, about 5 bytes).
+:class:`FbaDecoder` decodes a stream as its bytes arrive, a packet at a time, with memory bounded by a
+packet; :func:`encode_faps`' ``packet`` sets the frames per packet, the decoder's delay (default
+:data:`PACKET_SECONDS` of frames). Version 1 (read, no longer written) had the same header, then every
+frame's mask ahead of a single payload for the whole stream, which cannot be decoded before it ends.
 
 A FAP absent from a frame is not sent; the next frame that carries it is predicted from its last sent
 value. Quantised values must stay below 2**15 steps in magnitude (every legal FAP does at ``quant``
@@ -58,10 +68,17 @@ from ..errors import FileFormatError, InputError
 from .fapstream import FapStream, curve_columns
 from .tables import FAP_COUNT, fap_table
 
-__all__ = ["encode_faps", "decode_faps", "read_fba", "write_fba", "fba_quant", "fap_psnr", "FORMAT_VERSION"]
+__all__ = ["encode_faps", "decode_faps", "FbaDecoder", "read_fba", "read_fba_pieces", "write_fba", "fba_quant",
+           "fap_psnr", "FORMAT_VERSION", "PACKET_SECONDS"]
 
 MAGIC = b"faFB"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+_READS = (1, 2)
+# Frames per packet by default, in seconds of the stream: the decoder's delay. A packet costs ~5 bytes
+# (its header and the range coder's sealing), so at 25 fps one packet a second adds ~0.04 kbit/s, one a
+# frame ~1 kbit/s (benchmarks/fap_coding.py measures it): a delay of a second keeps the rate of the
+# 8-FAP speech streams (~0.4 kbit/s) within 10% of one packet for the whole stream.
+PACKET_SECONDS = 1.0
 _HEAD = struct.Struct("<4sBBddI9s")  # magic, version, flags, fps, quant, frames, sent FAPs
 _CONSECUTIVE = 1
 _LIMIT = 2**15  # |quantised value| < _LIMIT
@@ -105,7 +122,8 @@ def _update(state: np.ndarray, predicted: np.ndarray, residual: np.ndarray) -> N
     state[predicted] += (size - state[predicted]) >> _SHIFT
 
 
-def encode_faps(stream: FapStream, *, quant: float = 1.0, faps: Sequence[int] | None = None) -> bytes:
+def encode_faps(stream: FapStream, *, quant: float = 1.0, faps: Sequence[int] | None = None,
+                packet: int | None = None) -> bytes:
     """Code ``stream`` into the ``.fba`` bytes described in the module's docstring.
 
     Parameters
@@ -117,6 +135,10 @@ def encode_faps(stream: FapStream, *, quant: float = 1.0, faps: Sequence[int] | 
     faps : sequence of int, optional
         1-based numbers (3-68) of the FAPs to send; default: every low-level FAP the mask carries.
         A FAP is sent on the frames whose mask carries it.
+    packet : int, optional
+        Frames per packet, the decoder's delay (:class:`FbaDecoder` decodes a packet as soon as it has
+        all of it); default :data:`PACKET_SECONDS` of frames at the stream's rate. Each packet costs about
+        5 bytes (its header and the range coder's last word).
 
     Returns
     -------
@@ -141,6 +163,10 @@ def encode_faps(stream: FapStream, *, quant: float = 1.0, faps: Sequence[int] | 
         raise ValueError(f"stream must have from 1 to {_MAX_FRAMES} frames, got {T}")
     if not 0 < stream.fps <= _FPS_MAX:
         raise ValueError(f"stream.fps must lie in (0, {_FPS_MAX:g}], got {stream.fps:g}")
+    if packet is None:
+        packet = max(1, round(PACKET_SECONDS * stream.fps))
+    if isinstance(packet, bool) or not isinstance(packet, (int, np.integer)) or packet < 1:
+        raise ValueError(f"packet must be a whole number of frames from 1, got {packet!r}")
     columns = _columns(stream, faps)
     if not len(columns):
         raise ValueError("stream carries none of the FAPs to send (3-68)")
@@ -154,29 +180,40 @@ def encode_faps(stream: FapStream, *, quant: float = 1.0, faps: Sequence[int] | 
         raise ValueError(f"FAP {columns[j] + 1} at frame {t} is {stream.values[t, columns[j]]:g}, "
                          f"{abs(q[t, j])} quantiser steps at quant {quant:g}; the coder holds fewer than {_LIMIT}: "
                          "use a coarser quant")
+    frames = stream.frame_numbers
+    consecutive = bool(np.array_equal(frames, frames[0] + np.arange(T))) and 0 <= frames[0] < 2**31
+    if not consecutive and (frames.min() < 0 or frames.max() >= 2**31):
+        raise ValueError("stream.frame_numbers must lie from 0 to 2**31 - 1")
 
+    parts = [_header(stream, columns, quant, consecutive)]
     J = len(columns)
     state = np.full(J, _START, dtype=np.int64)
     last = np.zeros(J, dtype=np.int64)
     seen = np.zeros(J, dtype=bool)
-    symbols, scales = [], []
-    for t in range(T):
-        present = mask[t]
-        if not present.any():
-            continue
-        residual = q[t] - last
-        scale = np.where(seen, _scales(state), _INTRA_SCALE)
-        symbols.append(residual[present])
-        scales.append(scale[present])
-        _update(state, present & seen, residual)
-        last[present] = q[t, present]
-        seen |= present
-    encoder = constriction.stream.queue.RangeEncoder()
-    if symbols:
-        flat = np.concatenate(symbols).astype(np.int32)
-        encoder.encode(flat, _law(), np.zeros(len(flat)), np.concatenate(scales))
-    words = encoder.get_compressed().astype("<u4")
-    return _container(stream, columns, quant, mask, words)
+    previous = None  # the pattern of the last run written
+    law = _law()
+    for begin in range(0, T, packet):
+        stop = min(T, begin + packet)
+        symbols, scales = [], []
+        for t in range(begin, stop):
+            present = mask[t]
+            if not present.any():
+                continue
+            residual = q[t] - last
+            scale = np.where(seen, _scales(state), _INTRA_SCALE)
+            symbols.append(residual[present])
+            scales.append(scale[present])
+            _update(state, present & seen, residual)
+            last[present] = q[t, present]
+            seen |= present
+        encoder = constriction.stream.queue.RangeEncoder()
+        if symbols:
+            flat = np.concatenate(symbols).astype(np.int32)
+            encoder.encode(flat, law, np.zeros(len(flat)), np.concatenate(scales))
+        words = encoder.get_compressed().astype("<u4")
+        previous = _packet(parts, mask[begin:stop], None if consecutive else frames[begin:stop], words, previous)
+    body = b"".join(parts)
+    return body + struct.pack("<I", zlib.crc32(body))
 
 
 def _varint(n: int) -> bytes:
@@ -188,47 +225,52 @@ def _varint(n: int) -> bytes:
             return bytes(out)
 
 
-def _container(stream: FapStream, columns, quant, mask, words) -> bytes:
-    T = len(stream)
+def _header(stream: FapStream, columns, quant, consecutive: bool) -> bytes:
     sent = np.zeros(72, dtype=bool)
     sent[columns] = True
-    frames = stream.frame_numbers
-    consecutive = bool(np.array_equal(frames, frames[0] + np.arange(T))) and 0 <= frames[0] < 2**31
     name = stream.name.encode("utf-8")[:255].decode("utf-8", "ignore").encode("utf-8")  # cut on a character
-    parts = [_HEAD.pack(MAGIC, FORMAT_VERSION, _CONSECUTIVE if consecutive else 0, stream.fps, quant, T,
-                        np.packbits(sent).tobytes()),
-             bytes([len(name)]), name]
-    if consecutive:
-        parts.append(struct.pack("<I", int(frames[0])))
-    else:
-        if frames.min() < 0 or frames.max() >= 2**31:
-            raise ValueError("stream.frame_numbers must lie from 0 to 2**31 - 1")
-        parts.append(frames.astype("<u4").tobytes())
-    # frame masks: distinct patterns, then runs of frames sharing one
-    patterns, index = np.unique(mask, axis=0, return_inverse=True)
-    index = np.asarray(index).reshape(-1)
-    parts.append(_varint(len(patterns)))
-    parts += [np.packbits(p).tobytes() for p in patterns]
-    starts = np.flatnonzero(np.r_[True, index[1:] != index[:-1]])
-    lengths = np.diff(np.r_[starts, T])
+    head = _HEAD.pack(MAGIC, FORMAT_VERSION, _CONSECUTIVE if consecutive else 0, stream.fps, quant, len(stream),
+                      np.packbits(sent).tobytes())
+    first = struct.pack("<I", int(stream.frame_numbers[0])) if consecutive else b""
+    return head + bytes([len(name)]) + name + first
+
+
+def _packet(parts: list, mask: np.ndarray, frames, words: np.ndarray, previous):
+    """Append one packet (its frames' ``mask``, their numbers unless consecutive, the range coder's
+    ``words``) to ``parts``; returns the pattern of its last run."""
+    starts = np.flatnonzero(np.r_[True, (mask[1:] != mask[:-1]).any(axis=1)])
+    lengths = np.diff(np.r_[starts, len(mask)])
     parts.append(_varint(len(starts)))
-    parts += [_varint(int(n)) + _varint(int(index[s])) for s, n in zip(starts, lengths, strict=True)]
-    parts.append(struct.pack("<I", len(words)))
+    for s, n in zip(starts, lengths, strict=True):
+        same = previous is not None and np.array_equal(mask[s], previous)
+        parts.append(_varint(int(n) << 1 | int(same)))
+        if not same:
+            parts.append(np.packbits(mask[s]).tobytes())
+        previous = mask[s]
+    if frames is not None:
+        parts.append(frames.astype("<u4").tobytes())
+    parts.append(_varint(len(words)))
     parts.append(words.tobytes())
-    body = b"".join(parts)
-    return body + struct.pack("<I", zlib.crc32(body))
+    return previous
+
+
+class _Short(Exception):
+    """The bytes so far end inside the field being read: wait for more."""
 
 
 class _Reader:
-    """Reads fields off a checked body; every overrun is a FileFormatError naming ``source``."""
+    """Reads fields off ``body`` from ``at``. Running past the end raises ``_Short`` when more bytes may
+    still come (``final`` False), else a FileFormatError naming ``source``."""
 
-    def __init__(self, body: bytes, at: int, source: str):
-        self.body, self.at, self.source = body, at, source
+    def __init__(self, body, at: int, source: str, final: bool = True):
+        self.body, self.at, self.source, self.final = body, at, source, final
 
     def take(self, n: int, what: str) -> bytes:
         if n < 0 or self.at + n > len(self.body):
+            if not self.final and n >= 0:
+                raise _Short
             raise FileFormatError(self.source, f"ends inside its {what}")
-        chunk = self.body[self.at:self.at + n]
+        chunk = bytes(self.body[self.at:self.at + n])
         self.at += n
         return chunk
 
@@ -242,34 +284,13 @@ class _Reader:
         raise FileFormatError(self.source, f"has a malformed {what}")
 
 
-def decode_faps(data: bytes, *, source: str = "<bytes>") -> FapStream:
-    """Decode ``.fba`` bytes made by :func:`encode_faps` back into a :class:`FapStream`.
-
-    Values are the quantised reconstruction in FAPU; the mask is the sent FAPs on the frames that
-    carried them (no other FAP, and never FAPs 1 and 2).
-
-    Raises
-    ------
-    FileFormatError
-        Naming ``source``: a truncated or corrupt payload (the end check fails), another file, a
-        version this faceanim does not read, or fields that contradict one another.
-    """
-    import constriction
-
-    data = bytes(data)
+def _check_head(data, source: str) -> tuple:
+    """The fixed header's fields, checked; ``data`` holds at least ``_HEAD.size`` bytes."""
     fail = FileFormatError
-    if not data:
-        raise fail(source, "is empty")
-    if not data.startswith(MAGIC[:len(data)]):
-        raise fail(source, "is not a faceanim FAP stream (.fba): its first bytes are not b'faFB'")
-    if len(data) < _HEAD.size + 4:
-        raise fail(source, f"is truncated ({len(data)} bytes; the header alone takes {_HEAD.size + 4})")
-    _, version, flags, fps, quant, T, sent_bytes = _HEAD.unpack_from(data)
-    if version != FORMAT_VERSION:
-        raise fail(source, f"is version {version} of the .fba format; this faceanim reads version {FORMAT_VERSION}")
-    body, check = data[:-4], struct.unpack("<I", data[-4:])[0]
-    if zlib.crc32(body) != check:
-        raise fail(source, "is truncated or corrupt (its end check does not match)")
+    _, version, flags, fps, quant, T, sent_bytes = _HEAD.unpack_from(bytes(data[:_HEAD.size]))
+    if version not in _READS:
+        raise fail(source, f"is version {version} of the .fba format; this faceanim reads versions "
+                           f"{' and '.join(map(str, _READS))}")
     if flags & ~_CONSECUTIVE:
         raise fail(source, f"has unknown flags {flags:#x}")
     sane = np.isfinite(fps) and 0 < fps <= _FPS_MAX and np.isfinite(quant) and quant > 0
@@ -278,16 +299,294 @@ def decode_faps(data: bytes, *, source: str = "<bytes>") -> FapStream:
     sent = np.unpackbits(np.frombuffer(sent_bytes, dtype=np.uint8)).astype(bool)
     if sent[:2].any() or sent[FAP_COUNT:].any() or not sent.any():
         raise fail(source, "sends no FAPs, or FAPs that cannot be coded (1, 2, or beyond 68)")
-    columns = np.flatnonzero(sent)
+    return version, flags, fps, quant, T, np.flatnonzero(sent)
+
+
+def _read_name(read: _Reader) -> str:
+    raw = read.take(read.take(1, "name")[0], "name")
+    try:
+        name = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise FileFormatError(read.source, "has a name that is not UTF-8") from None
+    if not name or any(c.isspace() for c in name):
+        raise FileFormatError(read.source, "has an empty name or one with whitespace")
+    return name
+
+
+class _Symbols:
+    """The decoder's side of the adaptive models: the FAPs' scale states and last values."""
+
+    def __init__(self, J: int, source: str):
+        self.state = np.full(J, _START, dtype=np.int64)
+        self.last = np.zeros(J, dtype=np.int64)
+        self.seen = np.zeros(J, dtype=bool)
+        self.residual = np.zeros(J, dtype=np.int64)
+        self.source = source
+        self.law = _law()
+
+    def frames(self, decoder, mask_sent: np.ndarray, first: int) -> np.ndarray:
+        """(n, J) the quantised values of the frames ``mask_sent (n, J)`` from ``decoder``; frame numbers
+        in messages count from ``first``."""
+        q = np.zeros(mask_sent.shape, dtype=np.int64)
+        residual = self.residual
+        for t, present in enumerate(mask_sent):
+            n = int(present.sum())
+            if not n:
+                continue
+            scale = np.where(self.seen, _scales(self.state), _INTRA_SCALE)[present]
+            residual[:] = 0
+            try:
+                residual[present] = decoder.decode(self.law, np.zeros(n), scale)
+            except (AssertionError, ValueError, RuntimeError):  # constriction asserts on words no encoder makes
+                raise FileFormatError(self.source, f"is corrupt (frame {first + t} cannot be decoded)") from None
+            value = self.last + residual
+            if (np.abs(value[present]) >= _LIMIT).any():
+                raise FileFormatError(self.source, f"is corrupt (frame {first + t} decodes out of range)")
+            _update(self.state, present & self.seen, residual)
+            self.last[present] = value[present]
+            q[t, present] = value[present]
+            self.seen |= present
+        return q
+
+
+class FbaDecoder:
+    """Decodes a ``.fba`` as its bytes arrive: :meth:`feed` it bytes in pieces of any size and it returns
+    the frames that have become decodable (each packet's as soon as the packet is whole), then
+    :meth:`close` it, which checks the end. Memory holds one packet, not the stream.
+
+    The frames come out before the end check has been read: a consumer that must not act on a damaged
+    stream keeps what it makes provisional until :meth:`close` returns (``fap-decompress`` writes its
+    ``.fap`` atomically). A file of version 1 (one range-coded payload for the whole stream) is read
+    whole and its frames come out at :meth:`close`.
+
+    >>> import numpy as np
+    >>> values = np.zeros((50, 68)); values[:, 2] = np.arange(50) * 40.0
+    >>> mask = np.zeros((50, 68), bool); mask[:, 2] = True
+    >>> data = encode_faps(FapStream(values, mask, fps=25.0), packet=10)
+    >>> decoder = FbaDecoder()
+    >>> [len(decoder.feed(data[k:k + 16]) or ()) for k in range(0, len(data), 16)]
+    [0, 0, 0, 10, 10, 10, 20]
+    >>> decoder.close() is None and decoder.frames_done
+    50
+    """
+
+    def __init__(self, source: str = "<bytes>"):
+        self.source = str(source)
+        self._buffer = bytearray()
+        self._crc = 0
+        self._head = None  # (version, flags, fps, quant, T, columns, name, first frame or None)
+        self._symbols = None
+        self._pattern = None
+        self._last_frame = -1
+        self.frames_done = 0
+        self._ended = False
+        self._closed = False
+
+    # ---- the header, once read
+
+    @property
+    def fps(self) -> float | None:
+        return None if self._head is None else self._head[2]
+
+    @property
+    def quant(self) -> float | None:
+        return None if self._head is None else self._head[3]
+
+    @property
+    def frame_count(self) -> int | None:
+        """T, the frames the stream holds (from its header), or None before the header has arrived."""
+        return None if self._head is None else self._head[4]
+
+    @property
+    def name(self) -> str | None:
+        return None if self._head is None else self._head[6]
+
+    # ---- decoding
+
+    def feed(self, data) -> FapStream | None:
+        """Take the next bytes of the stream; returns the frames they completed (a FapStream numbering
+        them as the stream does), or None when they completed none.
+
+        Raises
+        ------
+        FileFormatError
+            Naming the source: what has arrived cannot be part of a valid ``.fba``.
+        """
+        if self._closed:
+            raise ValueError("this FbaDecoder is closed")
+        self._buffer += bytes(data)
+        if not self._buffer:
+            return None
+        out = []
+        try:
+            if self._head is None:
+                self._read_head()
+            if self._head[0] == 1:  # version 1: one payload, read whole at close
+                return None
+            while not self._ended:
+                decoded = self._read_packet()
+                out.append(decoded)
+            if len(self._buffer) > 4:
+                raise FileFormatError(self.source, "has bytes after its end check")
+        except _Short:
+            pass
+        return self._stream(out)
+
+    def close(self) -> FapStream | None:
+        """The stream is complete: check its end; returns the frames still held (a version 1 file's).
+
+        Raises
+        ------
+        FileFormatError
+            The stream is truncated (ends before its last frame or its end check) or its end check fails.
+        """
+        if self._closed:
+            return None
+        self._closed = True
+        fail = FileFormatError
+        if self._head is None:
+            if not self._buffer:
+                raise fail(self.source, "is empty")
+            raise fail(self.source, f"is truncated ({len(self._buffer)} bytes; the header alone takes "
+                                     f"{_HEAD.size + 4})")
+        if self._head[0] == 1:
+            return _decode_v1(bytes(self._buffer), self.source)
+        if not self._ended:
+            raise fail(self.source, f"is truncated or corrupt (it ends after frame {self.frames_done} of "
+                                    f"{self._head[4]})")
+        if len(self._buffer) != 4 or struct.unpack("<I", self._buffer)[0] != self._crc:
+            raise fail(self.source, "is truncated or corrupt (its end check does not match)")
+        return None
+
+    def _consume(self, n: int) -> None:
+        self._crc = zlib.crc32(self._buffer[:n], self._crc)
+        del self._buffer[:n]
+
+    def _read_head(self) -> None:
+        buffer = self._buffer
+        if not bytes(buffer[:4]) == MAGIC[:len(buffer[:4])]:
+            raise FileFormatError(self.source, "is not a faceanim FAP stream (.fba): its first bytes are not b'faFB'")
+        if len(buffer) < _HEAD.size:
+            raise _Short
+        version, flags, fps, quant, T, columns = _check_head(buffer, self.source)
+        if version == 1:
+            self._head = (version, flags, fps, quant, T, columns, None, None)
+            return
+        read = _Reader(buffer, _HEAD.size, self.source, final=False)
+        name = _read_name(read)
+        first = struct.unpack("<I", read.take(4, "frame numbers"))[0] if flags & _CONSECUTIVE else None
+        if first is not None and first + T - 1 >= 2**31:
+            raise FileFormatError(self.source, "has frame numbers that decrease or exceed 2**31 - 1")
+        self._head = (version, flags, fps, quant, T, columns, name, first)
+        self._symbols = _Symbols(len(columns), self.source)
+        self._consume(read.at)
+
+    def _read_packet(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(frame numbers, mask (n, J), quantised values (n, J)) of the next packet, once it is whole."""
+        import constriction
+
+        _, flags, _, _, T, columns, _, first = self._head
+        J, left = len(columns), T - self.frames_done
+        fail = FileFormatError
+        read = _Reader(self._buffer, 0, self.source, final=False)
+        runs = read.varint("mask runs")
+        if not 1 <= runs <= left:
+            raise fail(self.source, f"has a packet of {runs} mask runs where {left} frames are left")
+        width = (J + 7) // 8
+        patterns, lengths, pattern = [], [], self._pattern
+        for _ in range(runs):
+            code = read.varint("mask runs")
+            n, same = code >> 1, code & 1
+            if same:
+                if pattern is None:
+                    raise fail(self.source, "has a mask run that repeats a pattern before any")
+            else:
+                pattern = np.unpackbits(np.frombuffer(read.take(width, "mask patterns"), dtype=np.uint8))[:J]
+                pattern = pattern.astype(bool)
+            lengths.append(n)
+            patterns.append(pattern)
+        count = sum(lengths)
+        if min(lengths) < 1 or count > left:
+            raise fail(self.source, "has mask runs that do not cover its frames")
+        if flags & _CONSECUTIVE:
+            frames = first + self.frames_done + np.arange(count, dtype=np.int64)
+        else:
+            frames = np.frombuffer(read.take(4 * count, "frame numbers"), dtype="<u4").astype(np.int64)
+            if frames[-1] >= 2**31 or (np.diff(frames) < 0).any() or frames[0] < self._last_frame:
+                raise fail(self.source, "has frame numbers that decrease or exceed 2**31 - 1")
+        n_words = read.varint("payload")
+        if n_words > 2 * J * count + 2:  # two words a symbol is more than any symbol takes
+            raise fail(self.source, f"has a packet payload of {n_words} words for {count} frames")
+        words = np.frombuffer(read.take(4 * n_words, "payload"), dtype="<u4").astype(np.uint32)
+        mask_sent = np.repeat(np.array(patterns), lengths, axis=0)
+        decoder = constriction.stream.queue.RangeDecoder(words)
+        q = self._symbols.frames(decoder, mask_sent, self.frames_done)
+        if not decoder.maybe_exhausted():
+            raise fail(self.source, f"is corrupt (a packet's payload holds more than its frames, at frame "
+                                    f"{self.frames_done + count})")
+        self._consume(read.at)
+        self._pattern = pattern
+        self._last_frame = int(frames[-1])
+        self.frames_done += count
+        self._ended = self.frames_done == T
+        return frames, mask_sent, q
+
+    def _stream(self, packets) -> FapStream | None:
+        if not packets:
+            return None
+        _, _, fps, quant, _, columns, name, _ = self._head
+        frames = np.concatenate([p[0] for p in packets])
+        values = np.zeros((len(frames), FAP_COUNT))
+        values[:, columns] = np.concatenate([p[2] for p in packets]) * _steps(columns, quant)
+        mask = np.zeros((len(frames), FAP_COUNT), dtype=bool)
+        mask[:, columns] = np.concatenate([p[1] for p in packets])
+        return FapStream(values, mask, fps=fps, frame_numbers=frames, name=name)
+
+
+def decode_faps(data: bytes, *, source: str = "<bytes>") -> FapStream:
+    """Decode ``.fba`` bytes made by :func:`encode_faps` back into a :class:`FapStream`.
+
+    Values are the quantised reconstruction in FAPU; the mask is the sent FAPs on the frames that
+    carried them (no other FAP, and never FAPs 1 and 2). Reads versions 1 and 2 (see
+    :class:`FbaDecoder` to decode as the bytes arrive).
+
+    Raises
+    ------
+    FileFormatError
+        Naming ``source``: a truncated or corrupt payload (the end check fails), another file, a
+        version this faceanim does not read, or fields that contradict one another.
+    """
+    data = bytes(data)
+    fail = FileFormatError
+    if not data:
+        raise fail(source, "is empty")
+    if not data.startswith(MAGIC[:len(data)]):
+        raise fail(source, "is not a faceanim FAP stream (.fba): its first bytes are not b'faFB'")
+    if len(data) < _HEAD.size + 4:
+        raise fail(source, f"is truncated ({len(data)} bytes; the header alone takes {_HEAD.size + 4})")
+    _check_head(data, source)
+    if zlib.crc32(data[:-4]) != struct.unpack("<I", data[-4:])[0]:
+        raise fail(source, "is truncated or corrupt (its end check does not match)")
+    decoder = FbaDecoder(source)
+    first = decoder.feed(data)
+    last = decoder.close()
+    return first if last is None else last
+
+
+def _decode_v1(data: bytes, source: str) -> FapStream:
+    """A version 1 ``.fba`` (one payload for the whole stream, masks ahead of it), whole."""
+    import constriction
+
+    fail = FileFormatError
+    if len(data) < _HEAD.size + 4:
+        raise fail(source, f"is truncated ({len(data)} bytes; the header alone takes {_HEAD.size + 4})")
+    _, flags, fps, quant, T, columns = _check_head(data, source)
+    body, check = data[:-4], struct.unpack("<I", data[-4:])[0]
+    if zlib.crc32(body) != check:
+        raise fail(source, "is truncated or corrupt (its end check does not match)")
     J = len(columns)
     read = _Reader(body, _HEAD.size, source)
-    raw_name = read.take(read.take(1, "name")[0], "name")
-    try:
-        name = raw_name.decode("utf-8")
-    except UnicodeDecodeError:
-        raise fail(source, "has a name that is not UTF-8") from None
-    if not name or any(c.isspace() for c in name):
-        raise fail(source, "has an empty name or one with whitespace")
+    name = _read_name(read)
     if flags & _CONSECUTIVE:
         first = struct.unpack("<I", read.take(4, "frame numbers"))[0]
         frames = first + np.arange(T, dtype=np.int64)
@@ -315,32 +614,8 @@ def decode_faps(data: bytes, *, source: str = "<bytes>") -> FapStream:
     if read.at + 4 * n_words != len(body):
         raise fail(source, f"has a payload of {len(body) - read.at - 4} bytes where its header says {4 * n_words}")
     words = np.frombuffer(read.take(4 * n_words, "payload"), dtype="<u4").astype(np.uint32)
-
     decoder = constriction.stream.queue.RangeDecoder(words)
-    law = _law()
-    state = np.full(J, _START, dtype=np.int64)
-    last = np.zeros(J, dtype=np.int64)
-    seen = np.zeros(J, dtype=bool)
-    q = np.zeros((T, J), dtype=np.int64)
-    residual = np.zeros(J, dtype=np.int64)
-    for t in range(T):
-        present = mask_sent[t]
-        n = int(present.sum())
-        if not n:
-            continue
-        scale = np.where(seen, _scales(state), _INTRA_SCALE)[present]
-        residual[:] = 0
-        try:
-            residual[present] = decoder.decode(law, np.zeros(n), scale)
-        except (AssertionError, ValueError, RuntimeError):  # constriction asserts on words no encoder makes
-            raise fail(source, f"is corrupt (frame {t} cannot be decoded)") from None
-        value = last + residual
-        if (np.abs(value[present]) >= _LIMIT).any():
-            raise fail(source, f"is corrupt (frame {t} decodes out of range)")
-        _update(state, present & seen, residual)
-        last[present] = value[present]
-        q[t, present] = value[present]
-        seen |= present
+    q = _Symbols(J, source).frames(decoder, mask_sent, 0)
     if not decoder.maybe_exhausted():
         raise fail(source, "is corrupt (its payload holds more than its frames)")
     values = np.zeros((T, FAP_COUNT))
@@ -350,10 +625,11 @@ def decode_faps(data: bytes, *, source: str = "<bytes>") -> FapStream:
     return FapStream(values, mask, fps=fps, frame_numbers=frames, name=name)
 
 
-def write_fba(path, stream: FapStream, *, quant: float = 1.0, faps: Sequence[int] | None = None) -> bytes:
+def write_fba(path, stream: FapStream, *, quant: float = 1.0, faps: Sequence[int] | None = None,
+              packet: int | None = None) -> bytes:
     """Code ``stream`` (see :func:`encode_faps`) into the file ``path``, complete or not at all; returns
     the bytes written."""
-    data = encode_faps(stream, quant=quant, faps=faps)
+    data = encode_faps(stream, quant=quant, faps=faps, packet=packet)
     with atomic_output(path) as tmp:
         tmp.write_bytes(data)
     return data
@@ -379,6 +655,46 @@ def read_fba(path) -> FapStream:
     except OSError as exc:
         raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
     return decode_faps(data, source=str(path))
+
+
+def read_fba_pieces(path, *, chunk: int = 1 << 16):
+    """Decode the ``.fba`` file ``path`` as it is read, ``chunk`` bytes at a time (:class:`FbaDecoder`):
+    yields the :class:`FbaDecoder` first (its header read: fps, quant, frame count, name), then each
+    FapStream of frames as they become decodable. Memory holds a chunk and a packet, not the stream.
+    The last frames come before the end check is read; it raises after them if the file is damaged.
+
+    Raises
+    ------
+    InputError
+        The file does not exist or cannot be read.
+    FileFormatError
+        It is not a ``.fba``, is truncated or corrupt, or of another version.
+    """
+    from pathlib import Path
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    decoder = FbaDecoder(str(path))
+    try:
+        with open(path, "rb") as handle:
+            held = []
+            while decoder.frame_count is None:
+                data = handle.read(chunk)
+                piece = decoder.feed(data) if data else decoder.close()
+                if piece is not None:
+                    held.append(piece)
+            yield decoder
+            yield from held
+            while data := handle.read(chunk):
+                piece = decoder.feed(data)
+                if piece is not None:
+                    yield piece
+    except OSError as exc:
+        raise InputError(f"{path}: cannot be read ({exc.strerror})") from None
+    piece = decoder.close()
+    if piece is not None:
+        yield piece
 
 
 def fba_quant(path) -> float:

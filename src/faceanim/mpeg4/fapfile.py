@@ -19,7 +19,7 @@ from ..errors import FileFormatError, InputError
 from .fapstream import FapStream
 from .tables import FAP_COUNT
 
-__all__ = ["read_fap", "write_fap"]
+__all__ = ["read_fap", "write_fap", "fap_header_line", "fap_frame_lines"]
 
 
 def _lines(path: Path):
@@ -151,10 +151,24 @@ def write_fap(path, stream: FapStream) -> None:
     anything is written, with an :class:`~faceanim.errors.InputError` naming ``path``: the rate is the
     video's or the user's (``--fps``), not a fault of the caller.
     """
-    if not 1 <= round(stream.fps) <= _FPS_RANGE[1]:
-        raise InputError(f"{path}: a .fap holds a whole frame rate from 1 to {_FPS_RANGE[1]:g}; {stream.fps:g} fps "
-                         f"rounds to {round(stream.fps)}")
-    lines = [f"2.1 {stream.name} {round(stream.fps)} {len(stream)}"]
+    lines = [fap_header_line(path, stream.name, stream.fps, len(stream)), *fap_frame_lines(stream)]
+    with atomic_output(path) as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
+
+
+def fap_header_line(path, name: str, fps: float, frames: int) -> str:
+    """The header line of a ``.fap`` of ``frames`` frames (see :func:`write_fap`; ``path`` names the
+    file in the refusal of a frame rate it cannot hold). A writer that gets its frames in pieces writes
+    it, then :func:`fap_frame_lines` of each piece."""
+    if not 1 <= round(fps) <= _FPS_RANGE[1]:
+        raise InputError(f"{path}: a .fap holds a whole frame rate from 1 to {_FPS_RANGE[1]:g}; {fps:g} fps "
+                         f"rounds to {round(fps)}")
+    return f"2.1 {name} {round(fps)} {frames}"
+
+
+def fap_frame_lines(stream: FapStream) -> list[str]:
+    """The mask and value lines of every frame of ``stream`` (two a frame), as :func:`write_fap` writes them."""
+    lines = []
     rounded = np.rint(stream.values).astype(np.int64)
     for t in range(len(stream)):
         mask = stream.mask[t]
@@ -166,5 +180,4 @@ def write_fap(path, stream: FapStream) -> None:
         fields += [str(v) for v in rounded[t, 2:][mask[2:]]]
         lines.append(" ".join("1" if m else "0" for m in mask))
         lines.append(" ".join(fields))
-    with atomic_output(path) as tmp:
-        tmp.write_text("\n".join(lines) + "\n")
+    return lines

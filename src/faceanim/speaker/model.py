@@ -36,7 +36,7 @@ from ..mpeg4.fapstream import FapStream
 from ..mpeg4.jaw import JAW_CARRIED, jaw_hinge
 from ..validation import as_array, as_index_array, restore_frozen
 
-__all__ = ["SpeakerModel", "DEFAULT_RIDGE", "fap_measurement"]
+__all__ = ["SpeakerModel", "Interpreter", "DEFAULT_RIDGE", "fap_measurement"]
 
 # The ridge of the interpretation, in cm^2: the parameters have unit variance over the frames the model
 # was built on, so this is, as a prior, the squared error (here 0.3 mm) a received FAP's point may carry.
@@ -327,12 +327,15 @@ class SpeakerModel:
         counts = received.sum(axis=1)
         enough = counts >= self.parameter_count
         if len(stream) and not enough.any():
-            most = int(counts.max())
-            carried = "none of the speaker model's FAPs" if most == 0 else (
-                f"at most {most} of the speaker model's {len(self.fap_columns)} FAPs on a frame")
-            raise InputError(f"the FAP stream {stream.name} carries {carried}; its {self.parameter_count} "
-                             f"parameters need at least {self.parameter_count} on a frame")
+            raise self._too_few(stream.name, int(counts.max()))
         return enough
+
+    def _too_few(self, name: str, most: int) -> InputError:
+        """The refusal of a stream named ``name`` whose frames carry at most ``most`` of the model's FAPs."""
+        carried = "none of the speaker model's FAPs" if most == 0 else (
+            f"at most {most} of the speaker model's {len(self.fap_columns)} FAPs on a frame")
+        return InputError(f"the FAP stream {name} carries {carried}; its {self.parameter_count} "
+                          f"parameters need at least {self.parameter_count} on a frame")
 
     def _groups(self, received: np.ndarray, enough: np.ndarray):
         """(frames, received mask) for each subset of FAPs that frames with enough FAPs carry."""
@@ -373,17 +376,23 @@ class SpeakerModel:
             a[frames] = values[np.ix_(frames, np.flatnonzero(mask))] @ self.solver(mask, quant=quant).T
         return a
 
-    def _filtered(self, stream: FapStream, received: np.ndarray, enough: np.ndarray, quant: float | None
-                  ) -> np.ndarray:
-        """(T, K) the temporal prior's causal estimate, run by run of frames carrying the same FAPs."""
+    def _filtered(self, stream: FapStream, received: np.ndarray, enough: np.ndarray, quant: float | None,
+                  state: np.ndarray | None = None) -> np.ndarray:
+        """(T, K) the temporal prior's causal estimate, run by run of frames carrying the same FAPs;
+        ``state``: the parameters of the frame before the stream's first (None: no past)."""
+        return self._filtered_state(stream, received, enough, quant, state)[0]
+
+    def _filtered_state(self, stream: FapStream, received: np.ndarray, enough: np.ndarray, quant: float | None,
+                        state: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`_filtered` and the filter's state after the stream's last frame (None after a frame
+        with too few FAPs)."""
         if self.persistence is None:
-            self.filter_gain(received[0], quant=quant)  # raises, naming the cause
+            self.filter_gain(received[0] if len(received) else np.ones(len(self.fap_columns), bool), quant=quant)
         a = np.full((len(stream), self.parameter_count), np.nan)
         values = stream.values[:, self.fap_columns] - self.fap_offset
         change = np.ones(len(stream), dtype=bool)
         change[1:] = (received[1:] != received[:-1]).any(axis=1) | (enough[1:] != enough[:-1])
         starts = np.flatnonzero(change)
-        state = None
         for start, end in zip(starts, np.append(starts[1:], len(stream)), strict=True):
             if not enough[start]:
                 state = None
@@ -402,7 +411,13 @@ class SpeakerModel:
             for t in range(len(drive)):
                 state = A @ state + drive[t]
                 out[t] = state
-        return a
+        return a, state
+
+    def interpreter(self, *, quant: float | None = None, temporal: bool = False) -> Interpreter:
+        """:meth:`regularise` a piece of a stream at a time (:class:`Interpreter`), for a decoder that
+        gets its frames as they arrive: the temporal prior's state carries from one piece to the next,
+        so the pieces come out as the whole stream would."""
+        return Interpreter(self, quant=quant, temporal=temporal)
 
     def regularise(self, stream: FapStream, *, quant: float | None = None, temporal: bool = False) -> FapStream:
         """``stream`` as the model explains it: on each frame carrying at least as many of the model's
@@ -421,23 +436,27 @@ class SpeakerModel:
         """
         received = self._received(stream)
         enough = self._check_enough(stream, received)
+        return self._regularised(stream, received, enough, quant, temporal, None)[0]
+
+    def _regularised(self, stream: FapStream, received: np.ndarray, enough: np.ndarray, quant: float | None,
+                     temporal: bool, state: np.ndarray | None) -> tuple[FapStream, np.ndarray | None]:
+        """:meth:`regularise` without the check that some frame carries enough FAPs, from the temporal
+        prior's ``state``; returns the stream and the state after it."""
         values, mask = stream.values.copy(), stream.mask.copy()
         G = self.fap_matrix
         if temporal:
-            a = self._filtered(stream, received, enough, quant)
+            a, state = self._filtered_state(stream, received, enough, quant, state)
             values[np.ix_(enough, self.fap_columns)] = a[enough] @ G.T + self.fap_offset
-            mask[np.ix_(enough, self.fap_columns)] = True
-            return FapStream(values, mask, stream.fps, frame_numbers=stream.frame_numbers, visemes=stream.visemes,
-                             expressions=stream.expressions, name=stream.name)
-        measured = stream.values[:, self.fap_columns] - self.fap_offset
-        for frames, subset in self._groups(received, enough):
-            key = ("regularise", subset.tobytes(), None if quant is None else float(quant))
-            operator = self._cached(key, lambda s=subset: G @ self.solver(s, quant=quant))
-            result = measured[np.ix_(frames, np.flatnonzero(subset))] @ operator.T + self.fap_offset
-            values[np.ix_(frames, self.fap_columns)] = result
+        else:
+            measured = stream.values[:, self.fap_columns] - self.fap_offset
+            for frames, subset in self._groups(received, enough):
+                key = ("regularise", subset.tobytes(), None if quant is None else float(quant))
+                operator = self._cached(key, lambda s=subset: G @ self.solver(s, quant=quant))
+                result = measured[np.ix_(frames, np.flatnonzero(subset))] @ operator.T + self.fap_offset
+                values[np.ix_(frames, self.fap_columns)] = result
         mask[np.ix_(enough, self.fap_columns)] = True
         return FapStream(values, mask, stream.fps, frame_numbers=stream.frame_numbers, visemes=stream.visemes,
-                         expressions=stream.expressions, name=stream.name)
+                         expressions=stream.expressions, name=stream.name), state
 
     # ---- points -> parameters
 
@@ -452,3 +471,38 @@ class SpeakerModel:
         a = x @ projector.T
         a[~np.isfinite(x).all(axis=1)] = np.nan
         return a
+
+
+class Interpreter:
+    """A speaker model's :meth:`~SpeakerModel.regularise` of a stream that arrives in pieces: call it on
+    each piece in order; with ``temporal``, the temporal prior's state carries over, so the pieces
+    joined equal the whole stream regularised at once. :meth:`finish` refuses, as ``regularise`` does,
+    a stream none of whose frames carried enough of the model's FAPs.
+    """
+
+    def __init__(self, model: SpeakerModel, *, quant: float | None = None, temporal: bool = False):
+        if quant is not None and not (np.isfinite(quant) and quant > 0):
+            raise ValueError(f"quant must be a positive number, got {quant!r}")
+        if temporal and model.persistence is None:
+            model.filter_gain(np.ones(len(model.fap_columns), bool))  # raises, naming the cause
+        self.model, self.quant, self.temporal = model, quant, temporal
+        self._state = None
+        self._most = 0  # the most of the model's FAPs a frame has carried
+        self._enough = False
+        self._name = None
+
+    def __call__(self, piece: FapStream) -> FapStream:
+        received = self.model._received(piece)
+        counts = received.sum(axis=1)
+        enough = counts >= self.model.parameter_count
+        self._most = max(self._most, int(counts.max(initial=0)))
+        self._enough |= bool(enough.any())
+        self._name = piece.name
+        out, self._state = self.model._regularised(piece, received, enough, self.quant, self.temporal, self._state)
+        return out
+
+    def finish(self) -> None:
+        """Raises InputError (as :meth:`SpeakerModel.regularise` does) if no frame so far carried as many
+        of the model's FAPs as it has parameters."""
+        if self._name is not None and not self._enough:
+            raise self.model._too_few(self._name, self._most)
