@@ -28,11 +28,11 @@ from scipy.spatial import Delaunay
 from ..errors import InputError
 from ..landmarks import landmark_names
 from ..validation import as_array, as_index_array
-from .lipraster import RASTERS, GlLipRaster, NumpyLipRaster, prefilter
+from .lipraster import RASTERS, GlLipRaster, NumpyLipRaster, prefilter, prefilter_block
 from .model import SpeakerModel
 
-__all__ = ["AnalysisMesh", "analysis_mesh", "CloneAnalyser", "FrameAnswer", "MAX_TRIANGLES", "DEFAULT_MAX_EVALS",
-           "DEFAULT_PRIOR", "rigid_transform", "pose_matrix"]
+__all__ = ["AnalysisMesh", "analysis_mesh", "mouth_mesh", "CloneAnalyser", "FrameAnswer", "MAX_TRIANGLES",
+           "DEFAULT_MAX_EVALS", "DEFAULT_PRIOR", "COMPARES", "rigid_transform", "pose_matrix"]
 
 MAX_TRIANGLES = 50
 DEFAULT_MAX_EVALS = 150
@@ -51,6 +51,13 @@ _BOX_PIXELS = 64  # the box's width in its own pixels (the frame is averaged dow
 # (protrusion seen from the front) near the speaker's usual range. Chosen on the build frames of the
 # speech clips (tuning), not on the held-out frames the benchmark reports.
 DEFAULT_PRIOR = 1e-2
+DEFAULT_COLOUR_PRIOR = 2e-3
+_UNCOVERED = -1.0
+COMPARES = ("colour", "probability")
+# The synthesis mesh's triangles the colour comparison draws: those whose centre (rest shape, head frame)
+# lies within 0.95 mouth widths across, 0.6 above and 0.75 below the lips' centre (the box, 0.75 x
+# 0.425 mouth widths about the mouth, with room for the jaw to drop).
+_MOUTH_REGION = (0.95, 0.6, 0.75)
 
 # The simplex's first steps: articulatory parameters in their standard deviations over the build
 # frames; the rigid correction in degrees and centimetres.
@@ -66,14 +73,16 @@ def _mp_name(index: int) -> str:
 
 @dataclass(frozen=True, eq=False)
 class AnalysisMesh:
-    """The lips and their surroundings as a reduced mesh.
+    """The lips and their surroundings as a mesh: the reduced mesh of the lip-probability comparison
+    (:func:`analysis_mesh`, at most 50 triangles) or the synthesis mesh's triangles around the mouth
+    (:func:`mouth_mesh`, the colour comparison).
 
     Parameters
     ----------
     points : (V,) int64
         Indices into the model's mobile then static points.
     triangles : (F, 3) int64
-        Into ``points``; ``F <= 50``.
+        Into ``points``.
     outer, inner : (12,), (<= 14,) int64
         The lip contours (indices into ``points``, in order around the mouth).
     """
@@ -91,22 +100,14 @@ class AnalysisMesh:
                                                              frozen=True))
         object.__setattr__(self, "outer", as_index_array(self.outer, "outer", upper=V, shape=("L",), frozen=True))
         object.__setattr__(self, "inner", as_index_array(self.inner, "inner", upper=V, shape=("M",), frozen=True))
-        if len(self.triangles) > MAX_TRIANGLES:
-            raise ValueError(f"an analysis mesh holds at most {MAX_TRIANGLES} triangles, got {len(self.triangles)}")
 
     @property
     def lips(self) -> np.ndarray:
         return np.concatenate([self.outer, self.inner])
 
 
-def analysis_mesh(model: SpeakerModel) -> AnalysisMesh:
-    """The :class:`AnalysisMesh` of ``model`` (see the module's docstring for the choice).
-
-    Raises
-    ------
-    InputError
-        The model lacks MediaPipe's lip points (a model not built by ``faceanim speaker build``).
-    """
+def _lip_points(model: SpeakerModel) -> tuple[list[int], list[int]]:
+    """The outer and inner lip contours' indices into the model's mobile then static points."""
     names = tuple(model.names) + tuple(model.static_names)
     lookup = {n: i for i, n in enumerate(names)}
     outer = [lookup[_mp_name(i)] for i in _OUTER if _mp_name(i) in lookup]
@@ -114,6 +115,45 @@ def analysis_mesh(model: SpeakerModel) -> AnalysisMesh:
     if len(outer) < len(_OUTER) or len(inner) < len(_INNER):
         raise InputError("the speaker model lacks the lip contour points the analysis needs "
                          f"({len(_OUTER) - len(outer) + len(_INNER) - len(inner)} of MediaPipe's lip points missing)")
+    return outer, inner
+
+
+def mouth_mesh(model: SpeakerModel, triangles=None) -> AnalysisMesh:
+    """The synthesis mesh around the mouth: the triangles of ``triangles (F, 3)`` (into the model's
+    mobile then static points; default the model's) whose centre at rest lies in the region
+    :data:`_MOUTH_REGION` about the lips, so that the analysis draws exactly the surface the clone's
+    renderer draws there (same vertices, same UV, same triangles).
+
+    Raises
+    ------
+    InputError
+        The model lacks MediaPipe's lip points, or no triangle holds them.
+    """
+    outer, inner = _lip_points(model)
+    everything = np.vstack([model.rest, model.static_points])
+    t = np.asarray(model.triangles if triangles is None else triangles, dtype=np.int64)
+    lips = everything[outer]
+    centre, width = lips.mean(axis=0), np.ptp(lips[:, 0])
+    d = (everything[t].mean(axis=1) - centre)[:, :2] / width
+    across, above, below = _MOUTH_REGION
+    t = t[(np.abs(d[:, 0]) <= across) & (d[:, 1] <= above) & (d[:, 1] >= -below)]
+    points = np.unique(t)
+    if not np.isin(outer + inner, points).all():
+        raise InputError("the speaker model's triangles do not hold its lip contour points")
+    at = np.searchsorted(points, np.arange(len(everything)))
+    return AnalysisMesh(points, at[t], at[outer], at[inner])
+
+
+def analysis_mesh(model: SpeakerModel) -> AnalysisMesh:
+    """The reduced :class:`AnalysisMesh` of ``model`` (at most 50 triangles; see the module's
+    docstring for the choice).
+
+    Raises
+    ------
+    InputError
+        The model lacks MediaPipe's lip points (a model not built by ``faceanim speaker build``).
+    """
+    outer, inner = _lip_points(model)
     everything = np.vstack([model.rest, model.static_points])
     lips = everything[outer]
     centre = lips.mean(axis=0)
@@ -220,21 +260,30 @@ class CloneAnalyser:
         (default); False: the plain mean squared difference.
     blur : float
         Compare both images blurred by a Gaussian of this many box pixels (0: not blurred).
+    compare : {"colour", "probability"}
+        What is compared (see the module's docstring): ``"colour"`` (default), the clone's colours drawn
+        on the synthesis mesh around the mouth against the frame's, after a gain and an offset per
+        channel; ``"probability"``, the lip probabilities on the reduced mesh.
     """
 
     def __init__(self, model: SpeakerModel, appearance, *, width: int, height: int, mouth_width: float,
                  max_evals: int = DEFAULT_MAX_EVALS, rigid: bool = False, raster: str | None = None, field=None,
-                 camera=None, prior: float = DEFAULT_PRIOR, photometric: bool = True, blur: float = 0.0):
+                 camera=None, prior: float | None = None, photometric: bool = True, blur: float = 0.0,
+                 compare: str = "colour"):
         if raster is not None and raster not in RASTERS:
             raise ValueError(f"raster must be None or one of {', '.join(RASTERS)}, got {raster!r}")
+        if compare not in COMPARES:
+            raise ValueError(f"compare must be one of {', '.join(COMPARES)}, got {compare!r}")
+        if prior is None:
+            prior = DEFAULT_PRIOR if compare == "probability" else DEFAULT_COLOUR_PRIOR
         if field not in (None, "top", "bottom"):
             raise ValueError(f"field must be None, top or bottom, got {field!r}")
         K = model.parameter_count
         if isinstance(max_evals, bool) or not isinstance(max_evals, (int, np.integer)) or max_evals < K + 1:
             raise ValueError(f"max_evals must be a whole number from {K + 1} (the simplex's vertices), "
                              f"got {max_evals!r}")
-        self.model, self.appearance = model, appearance
-        self.mesh = analysis_mesh(model)
+        self.model, self.appearance, self.compare = model, appearance, compare
+        self.mesh = analysis_mesh(model) if compare == "probability" else mouth_mesh(model, appearance.triangles)
         self.rigid, self.max_evals, self.field, self.prior = bool(rigid), int(max_evals), field, float(prior)
         self.photometric, self.blur = bool(photometric), float(blur)
         self.width, self.height = int(width), int(height)
@@ -258,18 +307,24 @@ class CloneAnalyser:
         self.box_width = int(np.ceil(_BOX[0] * mouth_width / self.factor))
         self.box_height = max(4, int(np.ceil(_BOX[1] * mouth_width * self._rows / self.factor)))
         uv = np.asarray(appearance.uv, dtype=np.float64)[self.mesh.points]
-        textures = np.asarray(appearance.lip_textures, dtype=np.float32)
-        S = textures.shape[-1]
+        if compare == "probability":
+            textures = np.asarray(appearance.lip_textures, dtype=np.float32)
+        else:
+            textures = np.asarray(appearance.textures, dtype=np.float32)
+        S = textures.shape[1]
         corners = uv[self.mesh.outer]
         texels = S * np.ptp(corners[:, 0]) / max(mouth_width / self.factor, 1e-9)  # texels per box pixel
         filtered = prefilter(textures, texels)
         # only the texels under the analysis mesh (and a margin): the part of the textures read
-        s = filtered.shape[-1]
-        lo = np.maximum(np.floor(uv.min(axis=0) * s) - 2, 0).astype(int)
-        hi = np.minimum(np.ceil(uv.max(axis=0) * s) + 2, s).astype(int)
+        s = filtered.shape[1]
+        at = uv * S / prefilter_block(texels)  # in the filtered texture's texels (its texel J spans k of S's)
+        lo = np.maximum(np.floor(at.min(axis=0)) - 2, 0).astype(int)
+        hi = np.minimum(np.ceil(at.max(axis=0)) + 2, s).astype(int)
         part = np.ascontiguousarray(filtered[:, lo[1]:hi[1], lo[0]:hi[0]])
-        uv = (uv * s - lo) / (hi - lo)
-        options = dict(width=self.box_width, height=self.box_height)
+        uv = (at - lo) / (hi - lo)
+        # colours: -1 where the mesh does not reach (the mouth's opening), a value no texel has
+        options = dict(width=self.box_width, height=self.box_height, background=0.0 if compare == "probability"
+                       else _UNCOVERED)
         if raster == "numpy":
             self.raster = NumpyLipRaster(self.mesh.triangles, uv, part, **options)
         elif raster == "gl":
@@ -315,12 +370,15 @@ class CloneAnalyser:
     # ---- images
 
     def frame_image(self, image, origin) -> np.ndarray:
-        """``(box_height, box_width) float32``: the lip probability of ``image`` over the box at
+        """``(box_height, box_width) float32`` (``compare="probability"``: the lip probability of
+        ``image``) or ``(box_height, box_width, 3) float32`` (``"colour"``: its RGB) over the box at
         ``origin``, averaged over the box's pixels."""
         x0, y0 = origin
         f = self.factor
-        crop = image[y0:y0 + self.box_height * f, x0:x0 + self.box_width * f]
-        probability = np.asarray(self.colour.probability(np.ascontiguousarray(crop)), dtype=np.float32)
+        crop = np.ascontiguousarray(image[y0:y0 + self.box_height * f, x0:x0 + self.box_width * f])
+        if self.compare == "colour":
+            return crop.reshape(self.box_height, f, self.box_width, f, 3).mean(axis=(1, 3), dtype=np.float32)
+        probability = np.asarray(self.colour.probability(crop), dtype=np.float32)
         return probability.reshape(self.box_height, f, self.box_width, f).mean(axis=(1, 3))
 
     def weights(self, parameters) -> np.ndarray:
@@ -334,7 +392,8 @@ class CloneAnalyser:
         return blend_weights(np.sqrt(np.maximum(square, 0.0)), self.appearance.influence)
 
     def clone_image(self, parameters, pose, origin) -> np.ndarray:
-        """``(box_height, box_width) float32``: the clone's lip probability over the box at ``origin``."""
+        """``(box_height, box_width) float32``: the clone's lip probability over the box at ``origin``
+        (``(box_height, box_width, 3)``, its colours, -1 where the mesh does not reach, for ``"colour"``)."""
         points = self._sub_rest + np.tensordot(parameters, self._sub_basis, axes=1)
         xy = (self.pixels(points, pose) - origin) / self.factor
         return self.raster(xy, self.weights(parameters))
@@ -368,6 +427,23 @@ class CloneAnalyser:
 
     # ---- the simplex
 
+    def _colour_difference(self, clone: np.ndarray, target: np.ndarray) -> float:
+        """The share of the frame's colour variance over the box that the clone leaves unexplained: per
+        channel, over the pixels the mesh covers, the frame's colours against ``g * clone + b`` with the
+        least-squares gain ``g >= 0`` and offset ``b`` (a change of lighting, exact for the clone's own
+        frames under a tinted gain); over the pixels it leaves (the mouth's opening, what the textures do
+        not hold), against their own mean colour. 0: the clone explains the box exactly."""
+        covered = clone[..., 0] > _UNCOVERED
+        c, t = clone[covered], target[covered]
+        cm, tm = c - c.mean(axis=0), t - t.mean(axis=0)
+        cc, ct, tt = (cm * cm).sum(axis=0), (cm * tm).sum(axis=0), (tm * tm).sum(axis=0)
+        explained = np.where((cc > 0) & (ct > 0), ct * ct / np.where(cc > 0, cc, 1.0), 0.0)
+        left = float((tt - explained).sum())
+        if not covered.all():
+            u = target[~covered]
+            left += float(((u - u.mean(axis=0)) ** 2).sum())
+        return left / self._scale
+
     def _difference(self, clone: np.ndarray, target: np.ndarray) -> float:
         """Mean squared difference of ``target`` and ``clone`` once the clone's probabilities are put on
         the frame's scale: ``g * clone + b`` with the least-squares gain ``g >= 0`` and offset ``b``. The
@@ -377,6 +453,8 @@ class CloneAnalyser:
             import cv2
 
             clone = cv2.GaussianBlur(clone, (0, 0), self.blur)
+        if self.compare == "colour":
+            return self._colour_difference(clone, target)
         c = clone.reshape(-1) - clone.mean()
         t = target.reshape(-1) - target.mean()
         if not self.photometric:
@@ -410,6 +488,8 @@ class CloneAnalyser:
             import cv2
 
             target = cv2.GaussianBlur(target, (0, 0), self.blur)
+        # the frame's colour variance over the box (the colour comparison's unit), never 0
+        self._scale = max(float(((target - target.mean(axis=(0, 1))) ** 2).sum()), 1e-6)
         count = 0
         best = [np.inf, None]
 

@@ -25,17 +25,28 @@ import numpy as np
 from ..render.context import egl_context
 from ..validation import as_array, as_index_array
 
-__all__ = ["NumpyLipRaster", "GlLipRaster", "RASTERS", "prefilter"]
+__all__ = ["NumpyLipRaster", "GlLipRaster", "RASTERS", "prefilter", "prefilter_block"]
 
 RASTERS = ("numpy", "gl")
 
 
+def prefilter_block(footprint: float) -> int:
+    """``k``, the texels :func:`prefilter` averages into one along each side for a box pixel
+    ``footprint`` texels wide (1: not averaged). Its texel ``J`` is centred on the original's texel
+    coordinate ``(J + 0.5) k``: texture coordinates ``uv`` read it at ``uv S / k`` of its texels (not
+    ``uv (S // k)``, which would shift what is read by up to ``k / 2`` texels at the far side)."""
+    if float(footprint) / np.sqrt(12.0) < 0.5:
+        return 1
+    return max(1, int(round(float(footprint) / 1.5)))
+
+
 def prefilter(textures, footprint: float) -> np.ndarray:
-    """``textures (Q, S, S)`` as a box pixel sees them, ``footprint`` texels wide: blurred by a
-    Gaussian of the same spread (``footprint / sqrt(12)`` texels), so that reading the texture at a box
-    pixel's centre gives about the pixel's mean, as averaging the frame's pixels over the box does; then
-    averaged over blocks of ``k = round(footprint / 1.5)`` texels (``(Q, S // k, S // k)`` float32),
-    about 1.5 texels a box pixel: small enough to mix and read quickly, fine enough to read bilinearly.
+    """``textures (Q, S, S)`` (or ``(Q, S, S, C)``, C channels) as a box pixel sees them, ``footprint``
+    texels wide: blurred by a Gaussian of the same spread (``footprint / sqrt(12)`` texels), so that
+    reading the texture at a box pixel's centre gives about the pixel's mean, as averaging the frame's
+    pixels over the box does; then averaged over blocks of ``k`` texels (:func:`prefilter_block`,
+    ``round(footprint / 1.5)``), giving ``(Q, S // k, S // k[, C])`` float32, about 1.5 texels a box
+    pixel: small enough to mix and read quickly, fine enough to read bilinearly.
 
     >>> t = np.zeros((1, 8, 8), np.float32); t[0, 4, 4] = 1
     >>> small = prefilter(t, 3.0)
@@ -50,11 +61,11 @@ def prefilter(textures, footprint: float) -> np.ndarray:
     sigma = float(footprint) / np.sqrt(12.0)
     if sigma < 0.5:  # under a texel: bilinear reading is the filter
         return np.ascontiguousarray(t)
-    t = gaussian_filter(t, sigma=(0, sigma, sigma), mode="nearest")
-    k = max(1, int(round(footprint / 1.5)))
+    t = gaussian_filter(t, sigma=(0, sigma, sigma) + (0,) * (t.ndim - 3), mode="nearest")
+    k = prefilter_block(footprint)
     if k > 1:
-        Q, S, R = t.shape
-        t = t[:, :S // k * k, :R // k * k].reshape(Q, S // k, k, R // k, k).mean(axis=(2, 4))
+        Q, S, R = t.shape[:3]
+        t = t[:, :S // k * k, :R // k * k].reshape(Q, S // k, k, R // k, k, *t.shape[3:]).mean(axis=(2, 4))
     return np.ascontiguousarray(t, dtype=np.float32)
 
 
@@ -65,9 +76,10 @@ class _Raster:
         self.uv = as_array(uv, "uv", shape=("V", 2), frozen=True)
         self.triangles = as_index_array(triangles, "triangles", upper=len(self.uv), shape=("F", 3), frozen=True)
         t = np.asarray(textures, dtype=np.float32)
-        if t.ndim != 3 or t.shape[0] < 1:
-            raise ValueError(f"textures must have shape (Q, S, S), got {t.shape}")
+        if t.ndim not in (3, 4) or t.shape[0] < 1 or (t.ndim == 4 and not 1 <= t.shape[3] <= 4):
+            raise ValueError(f"textures must have shape (Q, S, S) or (Q, S, S, C) with C <= 4, got {t.shape}")
         self.textures = t
+        self.channels = 1 if t.ndim == 3 else t.shape[3]
         if int(width) <= 0 or int(height) <= 0:
             raise ValueError(f"box size must be positive, got {width}x{height}")
         self.width, self.height, self.background = int(width), int(height), float(background)
@@ -90,8 +102,9 @@ class NumpyLipRaster(_Raster):
     triangles : (F, 3) int64
     uv : (V, 2) float64
         Each vertex's texture coordinates in ``[0, 1]``.
-    textures : (Q, s, s) float32
-        The key postures' lip-probability textures (filtered to the box's scale, :func:`prefilter`).
+    textures : (Q, s, s) or (Q, s, s, C) float32
+        The key postures' lip-probability textures, or their colours (C channels), filtered to the box's
+        scale (:func:`prefilter`).
     width, height : int
         The box, pixels.
     background : float
@@ -106,8 +119,8 @@ class NumpyLipRaster(_Raster):
 
     def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0):
         super().__init__(triangles, uv, textures, width=width, height=height, background=background)
-        Q, s, r = self.textures.shape
-        self._flat = np.ascontiguousarray(self.textures.reshape(Q, -1))  # (Q, s*r): mixed once a call
+        Q, s, r = self.textures.shape[:3]
+        self._flat = np.ascontiguousarray(self.textures.reshape(Q, -1))  # (Q, s*r*C): mixed once a call
         self._size = (s, r)
         self._uv_corners = self.uv[self.triangles]  # (F, 3, 2)
 
@@ -168,12 +181,13 @@ class NumpyLipRaster(_Raster):
         return py * self.width + px, triangle, np.stack([1.0 - l1 - l2, l1, l2], axis=1)
 
     def __call__(self, xy, weights) -> np.ndarray:
-        """``(height, width) float32``: the mix ``sum_q weights[q] * textures[q]`` drawn on the mesh at
-        vertices ``xy (V, 2)`` (box pixels)."""
+        """``(height, width) float32`` (``(height, width, C)`` for textures of C channels): the mix
+        ``sum_q weights[q] * textures[q]`` drawn on the mesh at vertices ``xy (V, 2)`` (box pixels)."""
         xy, w = self._check(xy, weights)
         corners, coef, solid = self._affine(xy)
         triangle, px, py = self._spans(corners, solid)
-        image = np.full(self.width * self.height, self.background, dtype=np.float32)
+        C = self.channels
+        image = np.full((self.width * self.height, C), self.background, dtype=np.float32)
         if len(triangle):
             # u and v as affine functions of the pixel centre, per triangle: uv_a + l1 (uv_b - uv_a) + l2 (uv_c - uv_a)
             c = self._uv_corners
@@ -183,18 +197,18 @@ class NumpyLipRaster(_Raster):
             k = au.reshape(-1, 6)[triangle]
             x, y = px + 0.5, py + 0.5
             uv = np.stack([k[:, 0] * x + k[:, 1] * y + k[:, 2], k[:, 3] * x + k[:, 4] * y + k[:, 5]], axis=1)
-            image[py * self.width + px] = self._bilinear(w @ self._flat, uv)
-        return image.reshape(self.height, self.width)
+            image[py * self.width + px] = self._bilinear((w @ self._flat).reshape(-1, C), uv)
+        return image.reshape((self.height, self.width) + ((C,) if self.textures.ndim == 4 else ()))
 
     def _bilinear(self, texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
-        """``(n,)``: the flat ``texture (s*r,)`` read bilinearly at ``uv (n, 2)`` (texel centres at
+        """``(n, C)``: the flat ``texture (s*r, C)`` read bilinearly at ``uv (n, 2)`` (texel centres at
         ``(j + 0.5) / s``, clamped at the edges, as GL's linear filter with clamp-to-edge)."""
         s, r = self._size
         fx = np.clip(uv[:, 0] * r - 0.5, 0.0, r - 1.0)
         fy = np.clip(uv[:, 1] * s - 0.5, 0.0, s - 1.0)
         x0 = np.minimum(fx.astype(np.int64), max(r - 2, 0))
         y0 = np.minimum(fy.astype(np.int64), max(s - 2, 0))
-        tx, ty = fx - x0, fy - y0
+        tx, ty = (fx - x0)[:, None], (fy - y0)[:, None]
         dx, dy = (1 if r > 1 else 0), (r if s > 1 else 0)
         at = y0 * r + x0
         top = texture[at] * (1 - tx) + texture[at + dx] * tx
@@ -202,9 +216,11 @@ class NumpyLipRaster(_Raster):
         return top * (1 - ty) + bottom * ty
 
     def sample(self, uv) -> np.ndarray:
-        """``(n, Q)``: every texture read bilinearly at ``uv (n, 2)`` (see :meth:`_bilinear`)."""
+        """``(n, Q)`` (``(n, Q, C)`` with channels): every texture read bilinearly at ``uv (n, 2)`` (see
+        :meth:`_bilinear`)."""
         uv = np.asarray(uv, dtype=np.float64)
-        return np.stack([self._bilinear(t, uv) for t in self._flat], axis=1)
+        read = np.stack([self._bilinear(t.reshape(-1, self.channels), uv) for t in self._flat], axis=1)
+        return read if self.textures.ndim == 4 else read[..., 0]
 
     def close(self):
         pass
@@ -233,10 +249,10 @@ uniform sampler2DArray lips;
 uniform int count;
 uniform float weights[8];
 in vec2 texcoord;
-out float result;
+out vec4 result;
 void main() {
-    float mixed = 0.0;
-    for (int q = 0; q < count; ++q) mixed += weights[q] * texture(lips, vec3(texcoord, float(q))).r;
+    vec4 mixed = vec4(0.0);
+    for (int q = 0; q < count; ++q) mixed += weights[q] * texture(lips, vec3(texcoord, float(q)));
     result = mixed;
 }
 """
@@ -256,10 +272,11 @@ class GlLipRaster(_Raster):
             raise ValueError(f"the GL rasteriser mixes at most 8 textures, got {len(self.textures)}")
         self._ctx = egl_context("the GL rasteriser")
         ctx = self._ctx
-        self._fbo = ctx.framebuffer(color_attachments=[ctx.renderbuffer((self.width, self.height), 1, dtype="f4")])
+        C = self.channels
+        self._fbo = ctx.framebuffer(color_attachments=[ctx.renderbuffer((self.width, self.height), 4, dtype="f4")])
         self._program = ctx.program(vertex_shader=_GL_VERTEX, fragment_shader=_GL_FRAGMENT)
-        Q, s, r = self.textures.shape
-        self._texture = ctx.texture_array((r, s, Q), 1, np.ascontiguousarray(self.textures).tobytes(), dtype="f4")
+        Q, s, r = self.textures.shape[:3]
+        self._texture = ctx.texture_array((r, s, Q), C, np.ascontiguousarray(self.textures).tobytes(), dtype="f4")
         self._texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self._texture.repeat_x = self._texture.repeat_y = False
         self._texture.use(0)
@@ -283,11 +300,12 @@ class GlLipRaster(_Raster):
             self._program["weights"].value = tuple(float(v) for v in w) + (0.0,) * (8 - len(w))
             self._fbo.use()
             self._ctx.viewport = (0, 0, self.width, self.height)
-            self._fbo.clear(self.background, 0.0, 0.0, 0.0)
+            self._fbo.clear(*(self.background,) * 4)
             self._texture.use(0)
             self._vao.render(moderngl.TRIANGLES)
-            raw = np.frombuffer(self._fbo.read(components=1, dtype="f4", alignment=1), dtype=np.float32)
-        return raw.reshape(self.height, self.width)[::-1].copy()  # GL's first row is the bottom
+            raw = np.frombuffer(self._fbo.read(components=4, dtype="f4", alignment=1), dtype=np.float32)
+        image = raw.reshape(self.height, self.width, 4)[::-1, :, :self.channels]  # GL's first row is the bottom
+        return np.ascontiguousarray(image if self.textures.ndim == 4 else image[..., 0])
 
     def close(self):
         if getattr(self, "_ctx", None) is not None:
