@@ -52,6 +52,13 @@ _BOX_PIXELS = 64  # the box's width in its own pixels (the frame is averaged dow
 # speech clips (tuning), not on the held-out frames the benchmark reports.
 DEFAULT_PRIOR = 1e-2
 DEFAULT_COLOUR_PRIOR = 2e-3
+# The shaped simplex (CloneAnalyser._shaped_simplex): finite differences over this share of a first step;
+# the Gauss-Newton step's damping (Levenberg-Marquardt, on the Hessian's diagonal) and its longest move in
+# first steps; the cost each edge of the simplex raises, as a share of the start's.
+_DIFFERENCE = 0.25
+_DAMPING = 0.1
+_MAX_MOVE = 4.0
+_SIMPLEX_RISE = 0.5
 _UNCOVERED = -1.0
 COMPARES = ("colour", "probability")
 # The synthesis mesh's triangles the colour comparison draws: those whose centre (rest shape, head frame)
@@ -269,7 +276,7 @@ class CloneAnalyser:
     def __init__(self, model: SpeakerModel, appearance, *, width: int, height: int, mouth_width: float,
                  max_evals: int = DEFAULT_MAX_EVALS, rigid: bool = False, raster: str | None = None, field=None,
                  camera=None, prior: float | None = None, photometric: bool = True, blur: float = 0.0,
-                 compare: str = "colour"):
+                 compare: str = "colour", precondition: bool = True):
         if raster is not None and raster not in RASTERS:
             raise ValueError(f"raster must be None or one of {', '.join(RASTERS)}, got {raster!r}")
         if compare not in COMPARES:
@@ -285,7 +292,7 @@ class CloneAnalyser:
         self.model, self.appearance, self.compare = model, appearance, compare
         self.mesh = analysis_mesh(model) if compare == "probability" else mouth_mesh(model, appearance.triangles)
         self.rigid, self.max_evals, self.field, self.prior = bool(rigid), int(max_evals), field, float(prior)
-        self.photometric, self.blur = bool(photometric), float(blur)
+        self.photometric, self.blur, self.precondition = bool(photometric), float(blur), bool(precondition)
         self.width, self.height = int(width), int(height)
         P = len(model.names)
         N = P + len(model.static_names)
@@ -427,21 +434,53 @@ class CloneAnalyser:
 
     # ---- the simplex
 
+    def _colour_residual(self, clone: np.ndarray) -> np.ndarray:
+        """``(3 n,)``: what :meth:`_colour_difference` sums the squares of (before dividing by the
+        frame's variance), pixel by pixel: the frame's centred colours less the clone's, gained, where
+        the mesh reaches; the frame's colours less their mean elsewhere."""
+        t = self._target[0]
+        m = clone[..., 0].reshape(-1) > _UNCOVERED
+        c = clone.reshape(-1, 3).astype(np.float64)
+        r = np.empty_like(t)
+        if m.any():
+            cm, tm = c[m] - c[m].mean(axis=0), t[m] - t[m].mean(axis=0)
+            cc, ct = (cm * cm).sum(axis=0), (cm * tm).sum(axis=0)
+            gain = np.where((cc > 0) & (ct > 0), ct / np.where(cc > 0, cc, 1.0), 0.0)
+            r[m] = tm - gain * cm
+        if not m.all():
+            r[~m] = t[~m] - t[~m].mean(axis=0)
+        return r.reshape(-1)
+
+    def _set_target(self, target: np.ndarray) -> None:
+        """Keep the frame's box image's sums for :meth:`_colour_difference`, and its colour variance over
+        the box (the colour comparison's unit, never 0)."""
+        if self.compare != "colour":
+            return
+        t = np.ascontiguousarray(target, dtype=np.float64).reshape(-1, 3)
+        self._square = t * t
+        self._target = (t, self._square.sum(axis=0), t.sum(axis=0), float(len(t)))
+        self._scale = max(float(((t - t.mean(axis=0)) ** 2).sum()), 1e-6)
+
     def _colour_difference(self, clone: np.ndarray, target: np.ndarray) -> float:
         """The share of the frame's colour variance over the box that the clone leaves unexplained: per
         channel, over the pixels the mesh covers, the frame's colours against ``g * clone + b`` with the
         least-squares gain ``g >= 0`` and offset ``b`` (a change of lighting, exact for the clone's own
         frames under a tinted gain); over the pixels it leaves (the mouth's opening, what the textures do
         not hold), against their own mean colour. 0: the clone explains the box exactly."""
-        covered = clone[..., 0] > _UNCOVERED
-        c, t = clone[covered], target[covered]
-        cm, tm = c - c.mean(axis=0), t - t.mean(axis=0)
-        cc, ct, tt = (cm * cm).sum(axis=0), (cm * tm).sum(axis=0), (tm * tm).sum(axis=0)
+        m = (clone[..., 0] > _UNCOVERED).reshape(-1).astype(np.float64)
+        c = clone.reshape(-1, 3).astype(np.float64)
+        t, tt_all, t_all, n_all = self._target  # the frame's pixels (n, 3), and its sums of squares, sums, count
+        n = float(m.sum())
+        if n == 0:
+            return float((tt_all - t_all * t_all / n_all).sum()) / self._scale
+        cm = c * m[:, None]  # the clone where the mesh reaches, 0 elsewhere
+        sc, st, scc, sct, stt = cm.sum(axis=0), m @ t, (cm * c).sum(axis=0), (cm * t).sum(axis=0), m @ self._square
+        cc, ct, tt = scc - sc * sc / n, sct - sc * st / n, stt - st * st / n  # centred, over the covered pixels
         explained = np.where((cc > 0) & (ct > 0), ct * ct / np.where(cc > 0, cc, 1.0), 0.0)
         left = float((tt - explained).sum())
-        if not covered.all():
-            u = target[~covered]
-            left += float(((u - u.mean(axis=0)) ** 2).sum())
+        if n < n_all:  # the rest about its own mean
+            su, suu = t_all - st, tt_all - stt
+            left += float((suu - su * su / (n_all - n)).sum())
         return left / self._scale
 
     def _difference(self, clone: np.ndarray, target: np.ndarray) -> float:
@@ -462,6 +501,50 @@ class CloneAnalyser:
         cc = float(c @ c)
         gain = max(float(c @ t) / cc, 0.0) if cc > 0 else 0.0
         return float(np.mean((t - gain * c) ** 2))
+
+    def _prior_hessian(self, dimension: int) -> np.ndarray:
+        """(D,) the diagonal of the prior's Hessian over the simplex's D coordinates."""
+        K = self.model.parameter_count
+        h = np.full(dimension, 2.0 * self.prior / K)
+        if self.rigid:
+            h[K:] = 2.0 * self.prior / 6.0 / _RIGID_STEPS ** 2
+        return h
+
+    def _shaped_simplex(self, x0: np.ndarray, evaluate) -> np.ndarray:
+        """The simplex's first vertices shaped by the cost around ``x0``: the colour residual's Jacobian
+        by finite differences (D + 1 evaluations) gives a Gauss-Newton Hessian ``H`` (the prior's
+        added); one damped Gauss-Newton step is tried (one evaluation) and the simplex starts from the
+        better point, its edges along ``H``'s eigenvectors, each as long as raises the cost by
+        :data:`_SIMPLEX_RISE` of the start's (between 0.02 and 1 of a first step). Nelder-Mead's moves
+        are affine, so a simplex shaped like the valley searches it as a round one searches a round
+        valley: correlated parameters (the jaw against the lower lip) no longer stall it."""
+        D = len(x0)
+        steps = self._simplex(x0)[1:].diagonal() - x0  # the plain first steps: the differences' scale
+        f0, r0 = evaluate(x0, residual=True)
+        J = np.empty((len(r0), D))
+        for i in range(D):
+            x = x0.copy()
+            x[i] += _DIFFERENCE * steps[i]
+            J[:, i] = (evaluate(x, residual=True)[1] - r0) / (_DIFFERENCE * steps[i])
+        prior = self._prior_hessian(D)
+        K = self.model.parameter_count
+        gradient = 2.0 * J.T @ r0 / self._scale
+        gradient[:K] += prior[:K] * x0[:K]
+        if self.rigid:
+            gradient[K:] += prior[K:] * x0[K:]
+        H = 2.0 * J.T @ J / self._scale + np.diag(prior)
+        damped = H + _DAMPING * np.diag(np.diag(H))
+        move = -np.linalg.solve(damped, gradient)
+        reach = np.max(np.abs(move) / steps)
+        if reach > _MAX_MOVE:  # at most a few first steps in any coordinate
+            move *= _MAX_MOVE / reach
+        f1 = evaluate(x0 + move)
+        centre, value = (x0 + move, f1) if f1 < f0 else (x0, f0)
+        e, V = np.linalg.eigh(H)
+        scale = np.linalg.norm(V * steps[:, None], axis=0)  # a first step along each eigenvector
+        length = np.sqrt(_SIMPLEX_RISE * value / np.maximum(e, 1e-12))
+        length = np.clip(length, 0.02 * scale, scale)
+        return np.vstack([centre, centre + (V * length).T])
 
     def _simplex(self, x0: np.ndarray) -> np.ndarray:
         K = self.model.parameter_count
@@ -488,29 +571,36 @@ class CloneAnalyser:
             import cv2
 
             target = cv2.GaussianBlur(target, (0, 0), self.blur)
-        # the frame's colour variance over the box (the colour comparison's unit), never 0
-        self._scale = max(float(((target - target.mean(axis=(0, 1))) ** 2).sum()), 1e-6)
+        self._set_target(target)
         count = 0
         best = [np.inf, None]
 
-        def cost(x):
+        def evaluate(x, residual=False):
             nonlocal count
             if count >= self.max_evals:
                 raise _Spent
             count += 1
             pose = self.pose_of(base_pose, x[K:]) if self.rigid else base_pose
-            value = self._difference(self.clone_image(x[:K], pose, origin), target) + self.prior * np.mean(x[:K] ** 2)
+            clone = self.clone_image(x[:K], pose, origin)
+            if residual:
+                r = self._colour_residual(clone)
+                value = float(r @ r) / self._scale
+            else:
+                value = self._difference(clone, target)
+            value += self.prior * np.mean(x[:K] ** 2)
             if self.rigid:  # the correction held near the tracker's pose: one simplex step costs as one std
                 value += self.prior * np.mean((x[K:] / _RIGID_STEPS) ** 2)
             if value < best[0]:
                 best[0], best[1] = value, x.copy()
-            return value
+            return (value, r) if residual else value
 
         x0 = np.concatenate([start, correction]) if self.rigid else start.copy()
         try:
-            minimize(cost, x0, method="Nelder-Mead",
-                     options={"initial_simplex": self._simplex(x0), "maxfev": self.max_evals,
-                              "xatol": 1e-3, "fatol": 1e-7})
+            simplex = self._simplex(x0)
+            if self.compare == "colour" and self.precondition:
+                simplex = self._shaped_simplex(x0, evaluate)
+            minimize(evaluate, simplex[0], method="Nelder-Mead",
+                     options={"initial_simplex": simplex, "maxfev": self.max_evals, "xatol": 1e-3, "fatol": 1e-7})
         except _Spent:
             pass
         x = best[1]
