@@ -8,18 +8,29 @@ For ``speech_man.mp4`` and ``speech_woman.mp4``, two settings:
   clip (as ``faceanim speaker build`` does), and the stream ``faceanim speaker analyse`` makes of the
   same clip with it (34 FAPs: lips, jaw, chin, cheeks, nose; whole FAPU counts as in the ``.fap``),
   decoded through the model knowing the quantiser (``regularise(quant=...)``: each FAP weighed by its
-  step) and with the temporal prior (``temporal=True``), as ``faceanim fap-decompress --speaker`` does;
+  step) as ``faceanim fap-decompress --speaker`` does;
 * **the honest case**: the tracked FAPs of the video itself (``motion_to_faps`` of the capture, as
   ``faceanim encode`` writes them, on the model's 34 FAPs) on alternate 2-second blocks, decoded
   through a model built on the other blocks (both folds, their streams joined), with ``regularise``'s
   default weights (cm: the error here is the model's misfit of real motion, not quantisation); the
   step-weighted decoding is reported beside it.
 
-Each stream is coded by ``faceanim.mpeg4.fapcoder.encode_faps`` at quantiser scales ``quant`` from
-0.5 to 64 and decoded: (a) all 34 FAPs coded, decoded as they are; (b) the same decoded through the
-speaker model with its temporal prior (``SpeakerModel.regularise(temporal=True)``), and (b0) frame by
-frame without it; (c) only 26 (the lips and jaw, 3-18 and 51-60), 8 (3, 14, 16, 17, 51-54) or 6 (3,
-16, 51-54) FAPs coded, decoded through the model with the temporal prior, which fills in the rest.
+Each stream is coded by ``faceanim.mpeg4.fapcoder.encode_faps`` (packets of 1 s, the default) at
+quantiser scales ``quant`` from 0.5 to 64 and decoded: (a) all 34 FAPs coded, decoded as they are; (b)
+the same decoded through the speaker model as ``fap-decompress --speaker`` does by default: the
+temporal prior as a smoother within each packet, every FAP kept within its quantiser cell
+(``regularise(temporal=True, window=packet)``); (bc) through the prior's causal filter, frame by frame
+(``--causal``), and (b0) each frame alone (``--frame-by-frame``); (c) only 26 (the lips and jaw, 3-18
+and 51-60), 8 (3, 14, 16, 17, 51-54) or 6 (3, 16, 51-54) FAPs coded, decoded as (b), which fills in
+the rest.
+
+Why the gain of (b) over (a) holds where it does, on the own stream: the error of (a) is measured in
+quantiser steps, each FAP weighed as the interpretation weighs it; its share in the model's span (the
+part a projection onto the 6 parameters keeps; white noise: 6/34, so a projection removes at most
+10 log10(34/6) = 7.5 dB) and its correlation from one frame to the next (the part a temporal prior
+cannot average away) are given per ``quant``, with the floor: (b) at the finest step, where what is
+left is the stream's own rounding to whole FAPU, which no model reproduces. Also the cost of the
+container's packets (the decoder's delay) in kbit/s.
 
 The model's FAPs were 30 until the nose's 61-64 joined them (the ICP figure's stream held ~36); the
 PSNR is over the 34 now, so it is not comparable digit for digit with results from before.
@@ -35,7 +46,6 @@ Writes ``benchmarks/results/fap_coding.md`` and ``fap_coding.png``.
 from __future__ import annotations
 
 import os
-import struct
 import sys
 from pathlib import Path
 
@@ -50,14 +60,16 @@ CLIPS = ("speech_man", "speech_woman")
 QUANTS = (0.5, 1, 2, 4, 8, 16, 32, 64)
 SUBSETS = {"26": tuple(range(3, 19)) + tuple(range(51, 61)), "8": (3, 14, 16, 17, 51, 52, 53, 54),
            "6": (3, 16, 51, 52, 53, 54)}
-CURVES = ("a: 34 coded", "b: 34 through the model", "b0: 34 through the model frame by frame",
-          "c: 26 through the model", "c: 8 through the model", "c: 6 through the model")
-EIGHT = CURVES[4]
+CURVES = ("a: 34 coded", "b: 34 through the model", "bc: 34 through the model, causal filter",
+          "b0: 34 through the model frame by frame", "c: 26 through the model", "c: 8 through the model",
+          "c: 6 through the model")
+EIGHT = CURVES[5]
+PACKETS = (1, 5, None, 10**6)  # frames per packet; None: the default (1 s); 10**6: one for the whole clip
 
 
 def payload_bytes(data: bytes) -> int:
-    """The range coder's payload in an ``.fba`` (u32 N and N words), found by walking the container's
-    header as ``faceanim.mpeg4.fapcoder``'s docstring lays it out."""
+    """The range coder's words in an ``.fba`` of version 2 (4 bytes each), found by walking its packets as
+    ``faceanim.mpeg4.fapcoder``'s docstring lays them out."""
     from faceanim.mpeg4.fapcoder import _HEAD
 
     def varint(at):
@@ -69,20 +81,29 @@ def payload_bytes(data: bytes) -> int:
             if not byte & 0x80:
                 return value, at
 
-    _, _, flags, _, _, frames, sent = _HEAD.unpack_from(data)
+    _, version, flags, _, _, frames, sent = _HEAD.unpack_from(data)
+    if version != 2:
+        raise ValueError("the .fba's layout is not the one this benchmark reads")
     at = _HEAD.size
     at += 1 + data[at]  # the name
-    at += 4 if flags & 1 else 4 * frames  # the frame numbers
+    at += 4 if flags & 1 else 0  # the first frame's number
     width = (int(np.unpackbits(np.frombuffer(sent, np.uint8))[:68].sum()) + 7) // 8
-    patterns, at = varint(at)
-    at += patterns * width
-    runs, at = varint(at)
-    for _ in range(2 * runs):
-        _, at = varint(at)
-    words = struct.unpack_from("<I", data, at)[0]
-    if at + 4 + 4 * words + 4 != len(data):
+    done = words = 0
+    while done < frames:
+        runs, at = varint(at)
+        count = 0
+        for _ in range(runs):
+            code, at = varint(at)
+            count += code >> 1
+            at += 0 if code & 1 else width
+        at += 0 if flags & 1 else 4 * count
+        n, at = varint(at)
+        at += 4 * n
+        words += n
+        done += count
+    if at + 4 != len(data):
         raise ValueError("the .fba's layout is not the one this benchmark reads")
-    return 4 + 4 * words
+    return 4 * words
 
 
 def model_stream(motion, model, frames):
@@ -122,8 +143,9 @@ def curves(pieces, *, weigh: str = "steps") -> dict:
                 data = encode_faps(original, quant=quant, faps=sent)
                 decoded = decode_faps(data)
                 if not name.startswith("a"):
+                    window = None if name.startswith(("bc", "b0")) else packet_of(original)
                     decoded = model.regularise(decoded, quant=quant if weigh == "steps" else None,
-                                               temporal=not name.startswith("b0"))
+                                               temporal=not name.startswith("b0"), window=window)
                 decoded = FapStream(decoded.values, decoded.mask, decoded.fps)
                 where = original.mask
                 errors.append((held(decoded) - original.values)[where])
@@ -136,6 +158,60 @@ def curves(pieces, *, weigh: str = "steps") -> dict:
             psnr = 20 * np.log10(np.ptp(truth) / rms) if rms > 0 else np.inf
             out[name].append((quant, bits / seconds / 1000, payload / seconds / 1000, psnr))
     return out
+
+
+def packet_of(stream) -> int:
+    """The frames of a packet that encode_faps makes by default (1 s): the decoder's smoothing window."""
+    from faceanim.mpeg4.fapcoder import PACKET_SECONDS
+
+    return max(1, round(PACKET_SECONDS * stream.fps))
+
+
+def error_structure(original, model) -> list[str]:
+    """Per quant, the coding error of (a) on the model's own stream in quantiser steps: its RMS, its
+    share in the model's span (weighted as the interpretation weighs it), its lag-one correlation, the
+    projection's measured gain (b0 - a) against the white-noise bound, and (bc), (b) beside them."""
+    from faceanim.mpeg4 import fap_table
+    from faceanim.mpeg4.fapcoder import decode_faps, encode_faps, fap_psnr
+
+    j, G = model.fap_columns, model.fap_matrix
+    lines = ["| quant | (a) error, RMS steps | in the model's span | lag-1 correlation | projection's bound | "
+             "b0 - a | bc - a | b - a |", "|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    bound = 10 * np.log10(len(j) / model.parameter_count)
+    for quant in QUANTS:
+        decoded = decode_faps(encode_faps(original, quant=quant))
+        step = fap_table().quant_step[j] * quant
+        e = (decoded.values[:, j] - original.values[:, j]) / step
+        W = G / step[:, None]
+        inside = ((e @ (W @ np.linalg.pinv(W)).T) ** 2).sum() / (e**2).sum()
+        lag = (e[1:] * e[:-1]).sum() / (e**2).sum()
+        a = fap_psnr(original, decoded)
+        gains = [fap_psnr(original, model.regularise(decoded, quant=quant, temporal=t, window=w)) - a
+                 for t, w in ((False, None), (True, None), (True, packet_of(original)))]
+        lines.append(f"| {quant:g} | {np.sqrt((e**2).mean()):.2f} | {100 * inside:.0f}% | {lag:.2f} | "
+                     f"{10 * np.log10(1 / max(inside, 1e-9)):.1f} dB (white: {bound:.1f}) | "
+                     + " | ".join(f"{g:+.1f} dB" for g in gains) + " |")
+    return lines
+
+
+def packet_costs(pieces) -> list[str]:
+    """kbit/s of the whole .fba against the frames per packet (the decoder's delay), pooled over ``pieces``."""
+    from faceanim.mpeg4.fapcoder import encode_faps
+
+    lines = ["| FAPs | quant | " + " | ".join("1 s (default)" if p is None else "whole clip" if p == 10**6 else
+                                             f"{p} frame{'s' * (p > 1)}" for p in PACKETS) + " |",
+             "|---|---:|" + "---:|" * len(PACKETS)]
+    for label, sent in (("34", None), ("8", SUBSETS["8"])):
+        for quant in (1, 8, 32):
+            cells = []
+            for packet in PACKETS:
+                bits = seconds = 0.0
+                for original, _ in pieces:
+                    bits += 8 * len(encode_faps(original, quant=quant, faps=sent, packet=packet))
+                    seconds += len(original) / original.fps
+                cells.append(f"{bits / seconds / 1000:.2f}")
+            lines.append(f"| {label} | {quant:g} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def gain_at_equal_rate(a, b) -> list[tuple[float, float]]:
@@ -207,7 +283,9 @@ def main() -> None:
              "in). kbit/s of the whole .fba (header, masks, end check), payload-only in brackets. own: the "
              "stream speaker analyse makes with the model built on the whole clip; honest: the tracked FAPs "
              "(encode's) of alternate 2-second blocks through a model built on the other blocks. b and c: through "
-             "the model with its temporal prior (causal); b0: frame by frame. Gain at equal rate: b's PSNR "
+             "the model as fap-decompress --speaker decodes by default (the temporal prior as a smoother within "
+             "each 1 s packet, every FAP kept within its quantiser cell; cm-weighed in the honest case, no "
+             "cells); bc: the prior's causal filter (--causal); b0: frame by frame. Gain at equal rate: b's PSNR "
              "interpolated (against log rate) at a's rate, minus a's.", ""]
     for (clip, setting), table in results.items():
         lines += [f"## {clip}, {setting}", "", "| quant | " + " | ".join(CURVES) + " |",
@@ -215,7 +293,7 @@ def main() -> None:
         for i, quant in enumerate(QUANTS):
             cells = [f"{table[c][i][3]:.1f} dB @ {table[c][i][1]:.2f} ({table[c][i][2]:.2f})" for c in CURVES]
             lines.append(f"| {quant:g} | " + " | ".join(cells) + " |")
-        for curve in CURVES[1:3]:
+        for curve in CURVES[1:4]:
             gains = gain_at_equal_rate(table[CURVES[0]], table[curve])
             lines += ["", f"Gain of ({curve.split(':')[0]}) over (a) at (a)'s rates: " + ", ".join(
                 f"{g:+.1f} dB @ {r:.2f}" for r, g in gains) + f"; at least 7 dB from {where_at_least(gains)}"
@@ -238,6 +316,13 @@ def main() -> None:
                 f"{p:.1f} dB @ {r:.2f}" for _, r, _, p in other[CURVES[1]]) + "; 8 FAPs " + ", ".join(
                 f"{p:.1f} dB @ {r:.2f}" for _, r, _, p in other[EIGHT]) + "; gain of (b) over (a): " + ", ".join(
                 f"{g:+.1f} dB @ {r:.2f}" for r, g in gains))
+        if setting == "own":
+            lines += ["", f"Where the gain comes from ({clip}, own stream): the coding error of (a) in quantiser steps "
+                      "and what the model removes of it.", ""]
+            lines += error_structure(*settings[clip, setting][0])
+            lines += ["", f"The container's packets ({clip}, own stream): kbit/s of the whole .fba against the "
+                      "frames per packet, the delay of a decoder that reads it as it arrives.", ""]
+            lines += packet_costs(settings[clip, setting])
         lines.append("")
     publish("fap_coding.md", lines)
     plot(results)
@@ -252,7 +337,7 @@ def plot(results) -> None:
 
     fig, axes = plt.subplots(2, 2, figsize=(10, 7.5), sharey=True)
     for ax, ((clip, setting), table) in zip(axes.T.ravel(), results.items(), strict=True):
-        for name, style in zip(CURVES, ("o-", "s-", "x:", "^--", "v--", "d:"), strict=True):
+        for name, style in zip(CURVES, ("o-", "s-", "+-.", "x:", "^--", "v--", "d:"), strict=True):
             rates = [r for _, r, _, _ in table[name]]
             ax.plot(rates, [p for *_, p in table[name]], style, label=name, markersize=4)
         ax.set_xscale("log")

@@ -506,9 +506,17 @@ def test_decompress_through_a_speaker_model_fills_in_the_faps_not_sent(tmp_path,
     from faceanim.speaker import read_speaker
 
     assert fba_quant(tmp_path / "s.fba") == 1.0
-    # and through the model's temporal prior, which a model file of version 2 carries
-    expected = read_speaker(tmp_path / "s.npz").regularise(read_fba(tmp_path / "s.fba"), quant=1.0, temporal=True)
+    # and through the model's temporal prior, which a model file of version 2 carries: smoothed within
+    # each packet (25 frames, a second at 25 fps) and kept within the quantiser's cells
+    expected = read_speaker(tmp_path / "s.npz").regularise(read_fba(tmp_path / "s.fba"), quant=1.0, temporal=True,
+                                                           window=25)
     np.testing.assert_allclose(back.values, np.round(expected.values), atol=1)
+    code, out, err = run_cli(capsys, "fap-decompress", tmp_path / "s.fba", "-o", tmp_path / "causal.fap", "--speaker",
+                             tmp_path / "s.npz", "--causal")
+    assert code == 0, err
+    expected = read_speaker(tmp_path / "s.npz").regularise(read_fba(tmp_path / "s.fba"), quant=1.0, temporal=True)
+    np.testing.assert_allclose(read_fap(tmp_path / "causal.fap").values, np.round(expected.values), atol=1)
+    assert fap_psnr(truth, back) >= fap_psnr(truth, read_fap(tmp_path / "causal.fap")) - 0.1
     # decoded as it is read, a few bytes at a time: the same file, the filter's state carried across pieces
     from faceanim.compression import fap_decompress
 

@@ -280,9 +280,9 @@ def test_the_temporal_prior_starts_afresh_after_a_frame_with_too_few_faps():
     np.testing.assert_allclose(a[21], model.to_parameters(tail)[0], atol=1e-12)  # its own solve, no past
 
 
-@pytest.mark.parametrize("temporal", [False, True])
+@pytest.mark.parametrize("temporal, window", [(False, None), (True, None), (True, 10), (True, 7)])
 @pytest.mark.parametrize("quant", [None, 2.0])
-def test_the_interpreter_on_pieces_equals_regularise_on_the_whole(temporal, quant):
+def test_the_interpreter_on_pieces_equals_regularise_on_the_whole(temporal, window, quant):
     """A stream that arrives in pieces (a decoder's packets), with subsets changing and frames without
     a face, some cut across the pieces' bounds: the pieces joined are the whole stream regularised."""
     motion, model = smooth_synthetic()
@@ -291,18 +291,96 @@ def test_the_interpreter_on_pieces_equals_regularise_on_the_whole(temporal, quan
     mask[30:45] &= np.isin(np.arange(68) + 1, EIGHT)
     mask[[12, 13, 60]] = False
     stream = FapStream(truth.values, mask, truth.fps)
-    whole = model.regularise(stream, quant=quant, temporal=temporal)
-    interpret = model.interpreter(quant=quant, temporal=temporal)
+    whole = model.regularise(stream, quant=quant, temporal=temporal, window=window)
+    interpret = model.interpreter(quant=quant, temporal=temporal, window=window)
     bounds = [0, 1, 12, 13, 14, 29, 44, 61, 90]
     pieces = [interpret(FapStream(stream.values[a:b], stream.mask[a:b], stream.fps, frame_numbers=np.arange(a, b)))
               for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-    interpret.finish()
+    pieces = [p for p in [*pieces, interpret.finish()] if p is not None]
+    if window:  # a window's frames come out once it is whole
+        assert all(len(p) % window == 0 for p in pieces[:-1])
     np.testing.assert_allclose(np.concatenate([p.values for p in pieces]), whole.values, atol=1e-9)
     np.testing.assert_array_equal(np.concatenate([p.mask for p in pieces]), whole.mask)
     lonely = model.interpreter(temporal=temporal)
     lonely(subset(truth, [3, 14, 16, 17, 51]))  # a piece with too few FAPs passes through ...
     with pytest.raises(InputError, match="carries at most 5 of the speaker model's 34 FAPs"):
         lonely.finish()  # ... but a whole stream of them is refused, as regularise refuses it
+
+
+def _trajectory_solve(model, stream, *, window=None):
+    """The smoother's objective without cells, built and solved densely, run by run of the windows:
+    the known answer of regularise(temporal=True, window=...) on a stream in cm."""
+    j, G, F = model.fap_columns, model.fap_matrix, model.persistence
+    weight, noise = model.fapu.scale()[j], model.ridge
+    K, T = model.parameter_count, len(stream)
+    window = window or T
+    a, state = np.zeros((T, K)), None
+    for start in range(0, T, window):
+        n = min(T, start + window) - start
+        mean0, cov0 = (np.zeros(K), np.eye(K)) if state is None else (F * state[0], np.diag(F) @ state[1] @ np.diag(F)
+                                                                       + np.diag(1 - F**2))
+        rows, rhs = [], []
+        root0 = np.linalg.cholesky(np.linalg.inv(cov0)).T
+        block = np.zeros((K, n * K))
+        block[:, :K] = root0
+        rows.append(block)
+        rhs.append(root0 @ mean0)
+        for t in range(1, n):
+            block = np.zeros((K, n * K))
+            block[:, t * K:(t + 1) * K] = np.diag(1 / np.sqrt(1 - F**2))
+            block[:, (t - 1) * K:t * K] = -np.diag(F / np.sqrt(1 - F**2))
+            rows.append(block)
+            rhs.append(np.zeros(K))
+        for t in range(n):
+            received = stream.mask[start + t, j]
+            block = np.zeros((received.sum(), n * K))
+            block[:, t * K:(t + 1) * K] = (weight[:, None] * G)[received] / np.sqrt(noise)
+            rows.append(block)
+            rhs.append(weight[received] * (stream.values[start + t, j] - model.fap_offset)[received] / np.sqrt(noise))
+        A, b = np.vstack(rows), np.concatenate(rhs)
+        x = np.linalg.lstsq(A, b, rcond=None)[0]
+        a[start:start + n] = x.reshape(n, K)
+        state = (x[-K:], np.linalg.inv(A.T @ A)[-K:, -K:])
+    return a
+
+
+@pytest.mark.parametrize("window", [1, 9, None])
+def test_the_smoother_is_the_trajectorys_least_squares_solution(window):
+    """Without cells (a stream in cm), regularise(window=W) is the most probable trajectory under the
+    temporal prior: the least-squares solution of the whitened prior and FAPs, window by window, each
+    started from the one before (its last frame's mean and covariance)."""
+    motion, model = smooth_synthetic()
+    stream = subset(noisy(model.to_faps(np.random.default_rng(3).normal(size=(30, 6))), sigma=3.0), EIGHT)
+    expected = _trajectory_solve(model, stream, window=window)
+    a = model.regularise(stream, temporal=True, window=window or len(stream))
+    np.testing.assert_allclose(a.values[:, model.fap_columns], expected @ model.fap_matrix.T + model.fap_offset,
+                               atol=1e-6)
+
+
+def test_the_smoother_keeps_each_coded_fap_within_its_cell_and_beats_the_filter_at_coarse_steps():
+    """A stream the model makes, coarsely coded: the smoother's FAPs lie within their cells (half a step
+    and CELL_MARGIN; the penalty is soft, so within a tenth of a step more), and it is closer to
+    the truth than the causal filter."""
+    from faceanim.mpeg4.fapcoder import decode_faps, encode_faps
+    from faceanim.speaker.model import CELL_MARGIN
+
+    motion, model = smooth_synthetic()
+    truth = model.to_faps(model.fit_points(motion.displacements[400:][:, motion.index(model.names)]))
+    truth = FapStream(np.rint(truth.values), truth.mask, truth.fps)
+    j = model.fap_columns
+    for quant in (16.0, 64.0):
+        coded = decode_faps(encode_faps(truth, quant=quant))
+        smooth = model.regularise(coded, quant=quant, temporal=True, window=25)
+        step = TABLE.quant_step[j] * quant
+        outside = np.abs(smooth.values[:, j] - coded.values[:, j]) - (step / 2 + CELL_MARGIN)
+        assert (outside / step).max() < 0.1
+
+        def error(stream):
+            return np.sqrt(((stream.values[:, j] - truth.values[:, j]) ** 2).mean())
+
+        assert error(smooth) < error(model.regularise(coded, quant=quant, temporal=True))
+    with pytest.raises(ValueError, match="window smooths with the temporal prior"):
+        model.regularise(coded, quant=quant, window=25)
 
 
 def test_a_subset_too_small_on_every_frame_is_refused_in_one_line():

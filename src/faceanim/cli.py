@@ -325,16 +325,20 @@ def _parser() -> argparse.ArgumentParser:
                         "1 s of frames; a packet costs ~5 bytes)")
 
     p = commands.add_parser("fap-decompress", help="decode a .fba back into a .fap",
-                            description="Decode IN.fba (faceanim fap-compress) into a .fap; with --speaker, the "
-                                        "FAPs are interpreted through a speaker model (regularised, the FAPs not "
-                                        "sent filled in), each frame with the frames before it through the model's "
-                                        "temporal prior.")
+                            description="Decode IN.fba (faceanim fap-compress) into a .fap as it is read, a packet "
+                                        "at a time; with --speaker, the FAPs are interpreted through a speaker model "
+                                        "(regularised, the FAPs not sent filled in), each frame with the frames "
+                                        "before it and those after it in its packet through the model's temporal "
+                                        "prior, kept within the quantiser's cells.")
     p.add_argument("source", metavar="IN.fba")
     p.add_argument("-o", "--output", required=True, metavar="OUT.fap")
     p.add_argument("--speaker", metavar="SPEAKER.npz", help="a speaker model (faceanim speaker build)")
     p.add_argument("--frame-by-frame", action="store_true",
                    help="with --speaker: interpret each frame alone, without the model's temporal prior (a model "
                         "file of version 1 has none and is always read so)")
+    p.add_argument("--causal", action="store_true",
+                   help="with --speaker: the temporal prior as a causal filter, frame by frame (default: smoothed "
+                        "within each packet, every FAP kept within its quantiser cell)")
 
     p = commands.add_parser("fap-info", help="summarise a .fap file",
                             description="Frames, fps, active FAPs with their ranges, and values outside MPEG-4's.")
@@ -586,7 +590,7 @@ def _run(args, progress) -> str:
         from .compression import fap_decompress
 
         result = fap_decompress(args.source, args.output, speaker=args.speaker,
-                                temporal=False if args.frame_by_frame else None)
+                                temporal=False if args.frame_by_frame else None, causal=args.causal)
         return f"wrote {args.output}: {result.frames} frames, {len(result.faps)} FAPs" + (
             f", interpreted through {args.speaker}" if args.speaker else "")
     if args.command == "batch":

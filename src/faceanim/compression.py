@@ -123,15 +123,20 @@ def fap_compress(source, output, *, quant: float = 1.0, faps=None, packet: int |
     return CompressionResult(size=len(data), frames=len(stream), fps=stream.fps, faps=sent, quant=quant, psnr=psnr)
 
 
-def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None,
+def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None, causal: bool = False,
                    chunk: int = 1 << 16) -> DecompressionResult:
     """``faceanim fap-decompress``: decode the ``.fba`` at ``source`` into the ``.fap`` at ``output``;
     with ``speaker`` (a model file from ``faceanim speaker build``), the decoded FAPs are interpreted
     through it first (:meth:`~faceanim.speaker.SpeakerModel.regularise`: the model's FAPs regenerated
-    from the parameters that best explain those received, filled in where they were not sent).
-    ``temporal``: through the model's temporal prior (causal: each frame with those before it); by
-    default wherever the model has one (files from version 2 on), which
-    ``benchmarks/fap_coding.py`` measures as at least as close at every rate; ``False``: frame by frame.
+    from the parameters that best explain those received, filled in where they were not sent, each FAP
+    weighed by the step it was coded with).
+
+    ``temporal`` (default: wherever the model has a temporal prior, files from version 2 on): through
+    the model's temporal prior, as a smoother within each packet of the stream (the frames a packet
+    brings arrive together, so a frame is estimated from those after it in its packet as well as from
+    all before, at no delay beyond the packet's) and with every FAP kept within its quantiser cell
+    (``regularise(window=...)``); ``causal``: the prior's causal filter instead, frame by frame;
+    ``False``: each frame alone. ``benchmarks/fap_coding.py`` measures the three.
 
     The file is decoded as it is read, ``chunk`` bytes at a time, a packet of frames at a time
     (:func:`~faceanim.mpeg4.fapcoder.read_fba_pieces`), interpreted and written out as they come: memory
@@ -151,26 +156,35 @@ def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None
         from .speaker import read_speaker
 
         model = read_speaker(speaker)
-    pieces = read_fba_pieces(source, chunk=chunk)
-    decoder = next(pieces)
-    interpret = None
-    if model is not None:  # each FAP weighed by its quantiser step: the coding error is what is filtered
         if temporal is None:
             temporal = model.persistence is not None
-        interpret = model.interpreter(quant=decoder.quant, temporal=temporal)
+        if temporal:  # a model without a prior is refused before the stream is decoded
+            model.interpreter(temporal=True)
+    pieces = read_fba_pieces(source, chunk=chunk)
+    decoder = next(pieces)
     if round(decoder.fps) < 1:
         raise InputError(f"{source}: {decoder.fps:g} fps cannot be written as a .fap (whole frame rates from 1)")
+    interpret = None
     frames, active = 0, np.zeros(FAP_COUNT, dtype=bool)
-    with atomic_output(output) as tmp, open(tmp, "w", encoding="utf-8") as handle:
-        handle.write(fap_header_line(output, decoder.name, decoder.fps, decoder.frame_count) + "\n")
-        for piece in pieces:
-            if interpret is not None:
-                piece = interpret(piece)
+
+    def write(handle, piece):
+        nonlocal frames, active
+        if piece is not None:
             handle.write("\n".join(fap_frame_lines(piece)) + "\n")
             frames += len(piece)
             active |= piece.mask.any(axis=0)
+
+    with atomic_output(output) as tmp, open(tmp, "w", encoding="utf-8") as handle:
+        handle.write(fap_header_line(output, decoder.name, decoder.fps, decoder.frame_count) + "\n")
+        for piece in pieces:
+            if model is not None and interpret is None:  # at the first packet: its length is the window
+                window = None
+                if temporal and not causal:
+                    window = decoder.packet_frames or max(1, round(decoder.fps))  # version 1: a second
+                interpret = model.interpreter(quant=decoder.quant, temporal=bool(temporal), window=window)
+            write(handle, piece if interpret is None else interpret(piece))
         if interpret is not None:
-            interpret.finish()
+            write(handle, interpret.finish())
     return DecompressionResult(frames=frames, fps=decoder.fps, faps=tuple(int(c) + 1 for c in np.flatnonzero(active)))
 
 

@@ -379,6 +379,7 @@ class FbaDecoder:
         self._pattern = None
         self._last_frame = -1
         self.frames_done = 0
+        self.packet_frames = None  # the frames of the first packet, once it is read: the stream's delay
         self._ended = False
         self._closed = False
 
@@ -527,6 +528,8 @@ class FbaDecoder:
         self._consume(read.at)
         self._pattern = pattern
         self._last_frame = int(frames[-1])
+        if self.packet_frames is None:
+            self.packet_frames = count
         self.frames_done += count
         self._ended = self.frames_done == T
         return frames, mask_sent, q

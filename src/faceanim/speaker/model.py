@@ -44,6 +44,9 @@ __all__ = ["SpeakerModel", "Interpreter", "DEFAULT_RIDGE", "fap_measurement"]
 # talking clips d12 and d20 (held-out FAP error from 8 FAPs lowest at 1e-3 to 3e-3 cm^2), not on the
 # speech clips the benchmarks report.
 DEFAULT_RIDGE = 1e-3
+# The smoother's cells (regularise with window and quant) reach this far (FAPU) beyond half a step: the
+# .fap format holds whole FAPU, so every coded stream was rounded to them first.
+CELL_MARGIN = 0.5
 
 
 def fap_measurement(names, neutral: np.ndarray, fapu: Fapu, others: dict | None = None
@@ -413,13 +416,15 @@ class SpeakerModel:
                 out[t] = state
         return a, state
 
-    def interpreter(self, *, quant: float | None = None, temporal: bool = False) -> Interpreter:
+    def interpreter(self, *, quant: float | None = None, temporal: bool = False,
+                    window: int | None = None) -> Interpreter:
         """:meth:`regularise` a piece of a stream at a time (:class:`Interpreter`), for a decoder that
         gets its frames as they arrive: the temporal prior's state carries from one piece to the next,
         so the pieces come out as the whole stream would."""
-        return Interpreter(self, quant=quant, temporal=temporal)
+        return Interpreter(self, quant=quant, temporal=temporal, window=window)
 
-    def regularise(self, stream: FapStream, *, quant: float | None = None, temporal: bool = False) -> FapStream:
+    def regularise(self, stream: FapStream, *, quant: float | None = None, temporal: bool = False,
+                   window: int | None = None) -> FapStream:
         """``stream`` as the model explains it: on each frame carrying at least as many of the model's
         FAPs as it has parameters, every one of the model's FAPs is regenerated from the parameters
         that best explain those received (filled in where absent, denoised where present). Other FAPs
@@ -427,6 +432,11 @@ class SpeakerModel:
         model's FAPs (a frame without a face carries none). ``quant``: the quantiser scale of a coded
         stream, which weighs each FAP by its step (see :meth:`solver`); default: weighed in cm.
         ``temporal``: the parameters through the temporal prior (causal, see :meth:`to_parameters`).
+        ``window`` (with ``temporal``): the temporal prior as a smoother within windows of that many
+        frames, counted from the stream's first, each frame estimated from the frames of its window
+        after it as well as from those before (a decoder that receives a packet of frames at a time has
+        them all at once), and, with ``quant``, kept within the quantiser's cells
+        (:mod:`faceanim.speaker.smoother`).
 
         Raises
         ------
@@ -436,7 +446,50 @@ class SpeakerModel:
         """
         received = self._received(stream)
         enough = self._check_enough(stream, received)
+        if window is not None:
+            if not temporal:
+                raise ValueError("window smooths with the temporal prior: give temporal=True with it")
+            return self._windowed(stream, received, enough, quant, None, _check_window(window))[0]
         return self._regularised(stream, received, enough, quant, temporal, None)[0]
+
+    def _windowed(self, stream: FapStream, received: np.ndarray, enough: np.ndarray, quant: float | None,
+                  state, window: int) -> tuple[FapStream, Any]:
+        """:meth:`regularise` with ``window``, for whole windows of ``stream`` (its first frame starts
+        one; the last may be short), from the smoother's ``state`` (the mean and covariance of the
+        parameters of the frame before the stream's first, or None: no past); returns the stream and
+        the state after it."""
+        from .smoother import smooth_run
+
+        if self.persistence is None:
+            self.filter_gain(np.ones(len(self.fap_columns), bool), quant=quant)  # raises, naming the cause
+        weight, noise = self._weights(quant)
+        if noise == 0:  # FAPs taken as exact: every frame its own solve
+            return self._regularised(stream, received, enough, quant, False, None)[0], None
+        F = self.persistence
+        # a coded value's cell: half a step, and half a FAPU more, the rounding to whole FAPU that every
+        # value of a .fap has had before it was coded (which no model reproduces)
+        cells = None if quant is None else weight * (0.5 / weight + CELL_MARGIN)
+        values = stream.values[:, self.fap_columns]
+        a = np.full((len(stream), self.parameter_count), np.nan)
+        for start in range(0, len(stream), window):
+            stop = min(len(stream), start + window)
+            for run in np.split(np.arange(start, stop), np.flatnonzero(np.diff(enough[start:stop])) + 1):
+                if not enough[run[0]]:
+                    state = None
+                    continue
+                if state is None:
+                    mean0, cov0 = np.zeros(self.parameter_count), np.eye(self.parameter_count)
+                else:
+                    mean0, cov0 = F * state[0], F[:, None] * state[1] * F[None, :] + np.diag(1 - F**2)
+                a[run], cov = smooth_run(self.fap_matrix, self.fap_offset, values[run], received[run], weight, noise,
+                                         F, mean0, cov0, cells=cells)
+                state = (a[run[-1]], cov)
+        out = stream.values.copy()
+        out[np.ix_(enough, self.fap_columns)] = a[enough] @ self.fap_matrix.T + self.fap_offset
+        mask = stream.mask.copy()
+        mask[np.ix_(enough, self.fap_columns)] = True
+        return FapStream(out, mask, stream.fps, frame_numbers=stream.frame_numbers, visemes=stream.visemes,
+                         expressions=stream.expressions, name=stream.name), state
 
     def _regularised(self, stream: FapStream, received: np.ndarray, enough: np.ndarray, quant: float | None,
                      temporal: bool, state: np.ndarray | None) -> tuple[FapStream, np.ndarray | None]:
@@ -473,36 +526,94 @@ class SpeakerModel:
         return a
 
 
+def _check_window(window) -> int:
+    if isinstance(window, bool) or not isinstance(window, (int, np.integer)) or window < 1:
+        raise ValueError(f"window must be a whole number of frames from 1, got {window!r}")
+    return int(window)
+
+
 class Interpreter:
     """A speaker model's :meth:`~SpeakerModel.regularise` of a stream that arrives in pieces: call it on
     each piece in order; with ``temporal``, the temporal prior's state carries over, so the pieces
-    joined equal the whole stream regularised at once. :meth:`finish` refuses, as ``regularise`` does,
-    a stream none of whose frames carried enough of the model's FAPs.
+    joined equal the whole stream regularised at once. With ``window``, a piece's frames come out once
+    their window is whole (windows counted from the stream's first frame), the last short window at
+    :meth:`finish`; a decoder whose pieces are packets of that many frames loses no delay to it.
+    :meth:`finish` refuses, as ``regularise`` does, a stream none of whose frames carried enough of the
+    model's FAPs.
     """
 
-    def __init__(self, model: SpeakerModel, *, quant: float | None = None, temporal: bool = False):
+    def __init__(self, model: SpeakerModel, *, quant: float | None = None, temporal: bool = False,
+                 window: int | None = None):
         if quant is not None and not (np.isfinite(quant) and quant > 0):
             raise ValueError(f"quant must be a positive number, got {quant!r}")
+        if window is not None:
+            if not temporal:
+                raise ValueError("window smooths with the temporal prior: give temporal=True with it")
+            window = _check_window(window)
         if temporal and model.persistence is None:
             model.filter_gain(np.ones(len(model.fap_columns), bool))  # raises, naming the cause
-        self.model, self.quant, self.temporal = model, quant, temporal
+        self.model, self.quant, self.temporal, self.window = model, quant, temporal, window
         self._state = None
         self._most = 0  # the most of the model's FAPs a frame has carried
         self._enough = False
         self._name = None
+        self._held: list[FapStream] = []  # frames of a window not yet whole
 
-    def __call__(self, piece: FapStream) -> FapStream:
+    def __call__(self, piece: FapStream) -> FapStream | None:
+        """The frames of ``piece`` (and of earlier pieces held back) that can be given out: all of them,
+        or with ``window`` those of the windows now whole; None when there are none."""
         received = self.model._received(piece)
         counts = received.sum(axis=1)
-        enough = counts >= self.model.parameter_count
         self._most = max(self._most, int(counts.max(initial=0)))
-        self._enough |= bool(enough.any())
+        self._enough |= bool((counts >= self.model.parameter_count).any())
         self._name = piece.name
-        out, self._state = self.model._regularised(piece, received, enough, self.quant, self.temporal, self._state)
+        if self.window is None:
+            enough = counts >= self.model.parameter_count
+            out, self._state = self.model._regularised(piece, received, enough, self.quant, self.temporal,
+                                                       self._state)
+            return out
+        self._held.append(piece)
+        held = sum(len(p) for p in self._held)
+        whole = held - held % self.window
+        return self._release(whole) if whole else None
+
+    def _release(self, count: int) -> FapStream:
+        joined = _join(self._held)
+        first = _slice(joined, 0, count)
+        self._held = [_slice(joined, count, len(joined))] if count < len(joined) else []
+        received = self.model._received(first)
+        enough = received.sum(axis=1) >= self.model.parameter_count
+        out, self._state = self.model._windowed(first, received, enough, self.quant, self._state, self.window)
         return out
 
-    def finish(self) -> None:
-        """Raises InputError (as :meth:`SpeakerModel.regularise` does) if no frame so far carried as many
-        of the model's FAPs as it has parameters."""
+    def finish(self) -> FapStream | None:
+        """The frames still held (a last window shorter than the others), or None.
+
+        Raises InputError (as :meth:`SpeakerModel.regularise` does) if no frame carried as many of the
+        model's FAPs as it has parameters."""
         if self._name is not None and not self._enough:
             raise self.model._too_few(self._name, self._most)
+        held = sum(len(p) for p in self._held)
+        return self._release(held) if held else None
+
+
+def _join(pieces: list[FapStream]) -> FapStream:
+    if len(pieces) == 1:
+        return pieces[0]
+
+    def cat(name):
+        parts = [getattr(p, name) for p in pieces]
+        return None if any(x is None for x in parts) else np.concatenate(parts)
+
+    first = pieces[0]
+    return FapStream(cat("values"), cat("mask"), first.fps, frame_numbers=cat("frame_numbers"),
+                     visemes=cat("visemes"), expressions=cat("expressions"), name=first.name)
+
+
+def _slice(stream: FapStream, start: int, stop: int) -> FapStream:
+    def part(x):
+        return None if x is None else x[start:stop]
+
+    return FapStream(stream.values[start:stop], stream.mask[start:stop], stream.fps,
+                     frame_numbers=stream.frame_numbers[start:stop], visemes=part(stream.visemes),
+                     expressions=part(stream.expressions), name=stream.name)
