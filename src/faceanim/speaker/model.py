@@ -13,6 +13,9 @@ parameter is a first-order autoregression with the persistence (lag-one correlat
 measured on the frames it was built from, :attr:`SpeakerModel.persistence`, and unit variance, the
 prior the frame-by-frame solve's ridge already stands for: with persistence 0 the filter is that
 solve. Each frame then borrows what the frames before it saw, which removes more of the coding noise.
+With ``window`` the prior is a smoother over windows of frames that arrive together (a ``.fba``'s
+packets), which on a coded stream also keeps each FAP within its quantiser cell
+(:mod:`faceanim.speaker.smoother`).
 
 The forward map is exact and linear. Parameters give points; points give FAPs as
 :func:`faceanim.motion.motion_to_faps` measures them (a point's displacement along the FAP's direction,
