@@ -76,13 +76,15 @@ def smooth_run(G: np.ndarray, offset: np.ndarray, values: np.ndarray, received: 
     F = persistence
     qi = 1.0 / (1.0 - persistence**2)
     P0 = _solve(cov0, np.eye(K), K)  # its inverse (banded LAPACK: unthreaded, quick at K x K)
-    # per frame: the weighed rows H_t (n, J, K) and targets z_t, zero where not received
-    H = (weight[:, None] * G)[None] * received[:, :, None]
+    # the weighed rows (J, K), their outer products (J, K*K), and the targets z (n, J), zero where not
+    # received; a frame's rows are those it received (its residuals below are masked so)
+    H = weight[:, None] * G
+    outer = (H[:, :, None] * H[:, None, :]).reshape(len(H), K * K)
     z = np.where(received, weight * (values - offset), 0.0)
     # the constant part of the Hessian: the prior (block tridiagonal) and the Gaussian term
     t, k = np.arange(n), np.arange(K)
     base = np.zeros((n, K, n, K))
-    base[t, :, t, :] = np.einsum("tjk,tjl->tkl", H, H) / noise
+    base[t, :, t, :] = (received @ outer).reshape(n, K, K) / noise
     diagonal = np.tile(qi, (n, 1))
     diagonal[0] = 0
     diagonal[:-1] += F * qi * F
@@ -98,7 +100,7 @@ def smooth_run(G: np.ndarray, offset: np.ndarray, values: np.ndarray, received: 
         if n > 1:
             step = a[1:] - F * a[:-1]
             value += (step**2 * qi).sum()
-        r = np.einsum("tjk,tk->tj", H, a) - z
+        r = (a @ H.T) * received - z
         value += (r**2).sum() / noise
         if cells is not None:
             value += CELL_PENALTY * (np.maximum(np.abs(r) - cells, 0.0) ** 2 * received).sum()
@@ -107,7 +109,7 @@ def smooth_run(G: np.ndarray, offset: np.ndarray, values: np.ndarray, received: 
     # start: the Gaussian solution (one linear solve), then Newton on the cells' active set
     rhs0 = np.zeros((n, K))
     rhs0[0] = P0 @ mean0
-    rhs0 += np.einsum("tjk,tj->tk", H, z) / noise
+    rhs0 += z @ H / noise
     a = _solve(base, rhs0.reshape(-1), K).reshape(n, K)
     if cells is not None:
         value, r = objective(a)
@@ -116,9 +118,8 @@ def smooth_run(G: np.ndarray, offset: np.ndarray, values: np.ndarray, received: 
             if not over.any():
                 break
             target = np.where(over, z + cells * np.sign(r), 0.0)  # the bound each active FAP is pulled to
-            hess = _penalised(base, H, over, n, K)
-            Ho = H * over[:, :, None]
-            rhs = rhs0 + CELL_PENALTY * np.einsum("tjk,tj->tk", Ho, target)
+            hess = _penalised(base, outer, over, n, K)
+            rhs = rhs0 + CELL_PENALTY * (target @ H)
             new = _solve(hess, rhs.reshape(-1), K).reshape(n, K)
             scale, done = 1.0, False
             while scale > 1e-4:  # backtrack until the objective does not rise
@@ -133,7 +134,7 @@ def smooth_run(G: np.ndarray, offset: np.ndarray, values: np.ndarray, received: 
                 break
             if done:
                 break
-        final = _penalised(base, H, (np.abs(r) > cells) & received, n, K)
+        final = _penalised(base, outer, (np.abs(r) > cells) & received, n, K)
     else:
         final = base
     unit = np.zeros((n * K, K))
@@ -142,12 +143,12 @@ def smooth_run(G: np.ndarray, offset: np.ndarray, values: np.ndarray, received: 
     return a, (cov_last + cov_last.T) / 2
 
 
-def _penalised(base: np.ndarray, H: np.ndarray, over: np.ndarray, n: int, K: int) -> np.ndarray:
-    """The Hessian ``base`` plus the cell penalty's blocks for the FAPs ``over (n, J)`` their cells."""
-    Ho = H * over[:, :, None]
+def _penalised(base: np.ndarray, outer: np.ndarray, over: np.ndarray, n: int, K: int) -> np.ndarray:
+    """The Hessian ``base`` plus the cell penalty's blocks for the FAPs ``over (n, J)`` their cells
+    (``outer``: each FAP's weighed row's outer product, (J, K*K))."""
     hess = base.copy().reshape(n, K, n, K)
     t = np.arange(n)
-    hess[t, :, t, :] += CELL_PENALTY * np.einsum("tjk,tjl->tkl", Ho, Ho)
+    hess[t, :, t, :] += CELL_PENALTY * (over @ outer).reshape(n, K, K)
     return hess.reshape(n * K, n * K)
 
 
