@@ -511,16 +511,23 @@ def _run(args, progress) -> str:
                                               wireframe=args.wireframe, progress=progress)
             return f"wrote {args.output}: {count} frames"
         if args.speaker_command == "track":
-            from .speakertrack import track_speaker
+            import numpy as np
+
+            from .speakertrack import frame_ranges, track_speaker
 
             tracked = track_speaker(args.video, args.output, model=args.model, fap=args.fap, overlay=args.overlay,
                                     motion_out=args.motion_out, max_evals=args.max_evals, rigid=args.rigid,
                                     field=args.field, raster=args.raster, neutral=args.neutral,
                                     smoothing=not args.no_filter, progress=progress)
             T = len(tracked.parameters)
-            rate = T / max(tracked.seconds, 1e-9)
+            analysed = int(tracked.valid.sum())
+            rate = analysed / max(tracked.seconds, 1e-9)
+            missing = np.flatnonzero(~tracked.valid)
+            note = (f"; no face on frames {frame_ranges(missing)}: they hold the last analysed frame's parameters"
+                    if len(missing) else "")
             return (f"wrote {args.output}: {T} frames, {tracked.parameters.shape[1]} parameters, median "
-                    f"{int(sorted(tracked.evaluations)[T // 2])} evaluations a frame, {rate:.1f} frames/s analysed")
+                    f"{int(np.median(tracked.evaluations[tracked.valid]))} evaluations a frame, {rate:.1f} "
+                    f"frames/s analysed{note}")
         stream, parameters, outside = speech.analyse_speech(
             args.video, args.output, model=args.model, params_csv=args.params_csv, neutral=args.neutral,
             smoothing=not args.no_filter, progress=progress)

@@ -5,7 +5,9 @@ The video is tracked first (the streamed capture: landmarks on disk), for three 
 head's rigid motion per frame (the capture's pose; with ``rigid`` the simplex corrects it), the
 video's camera (fitted on up to 60 of its frames, :func:`faceanim.speaker.camera.fit_video_camera`) and
 the first frame's starting point (the landmark-based analysis, ``SpeakerModel.fit_points``; each later
-frame starts from the previous frame's answer). The colour model is adapted to the video's lighting on
+frame starts from the previous frame's answer, and the first after a stretch without a face from its
+own landmarks). Frames where the capture finds no face are not analysed: they are marked invalid and
+hold the last analysed frame's parameters. The colour model is adapted to the video's lighting on
 its first 3 frames. Frames are then decoded one at a time; memory does not grow with the video.
 """
 
@@ -36,7 +38,9 @@ class TrackedSpeech:
     vector in radians and translation in cm, :mod:`faceanim.speaker.camera`), ``evaluations (T,)``,
     ``cost (T,)``, the landmark-based ``landmark_parameters (T, K)`` (``fit_points`` of the capture),
     the seconds the analysis took (decoding and the capture not counted), the FAP stream, and the
-    video's ``camera (3, 4)`` and ``mouth_width`` (pixels) the analysis used."""
+    video's ``camera (3, 4)`` and ``mouth_width`` (pixels) the analysis used; ``valid (T,)`` bool: the
+    frames analysed (False: no face found there; those frames hold the last analysed frame's
+    parameters, with 0 evaluations and a nan cost)."""
 
     parameters: np.ndarray
     rigid: np.ndarray
@@ -47,6 +51,7 @@ class TrackedSpeech:
     stream: object
     camera: np.ndarray
     mouth_width: float
+    valid: np.ndarray | None = None
 
 
 def frame_ranges(frames) -> str:
@@ -103,7 +108,8 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     ------
     InputError
         A model without textures; a bad ``max_evals`` or ``field``; a video in which the mouth leaves
-        the frame (or no face is found), naming the frames. Nothing is written then.
+        the frame, naming the frames, or with no face at all. Nothing is written then. (Frames without a
+        face are not an error: they are marked in ``TrackedSpeech.valid`` and hold the last answer.)
     """
     from .capture.video import open_frames
     from .inputs import captured_source
@@ -143,7 +149,9 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     if missing:
         raise InputError(f"{model}: the model moves points the capture of {video} lacks ({', '.join(missing[:5])})")
     T = len(motion)
-    usable = np.asarray(motion.valid, dtype=bool)
+    usable = np.asarray(motion.valid, dtype=bool)  # a frame without a face is marked, not analysed
+    if not usable.any():
+        raise InputError(f"{video}: no face is found on any of its {T} frames")
     head = np.zeros((T, 6))
     head[usable] = rigid_of_pose(motion.pose[usable])
     columns = motion.index(speaker.names)
@@ -169,10 +177,10 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     mouth_width = float(np.ptp(xy[:, 0]))
     with CloneAnalyser(speaker, appearance, width=capture.width, height=height, mouth_width=mouth_width,
                        max_evals=int(max_evals), rigid=rigid, raster=raster, field=field, camera=camera) as analyser:
-        outside = [t for t in range(T) if not usable[t]
-                   or not analyser.box_inside(analyser.box_origin(start[t], poses[t]))]
+        outside = [t for t in np.flatnonzero(usable)
+                   if not analyser.box_inside(analyser.box_origin(start[t], poses[t]))]
         if outside:
-            raise InputError(f"{video}: the mouth leaves the frame (or no face is found) on frames "
+            raise InputError(f"{video}: the mouth leaves the frame on frames "
                              f"{frame_ranges(outside)} of {T}; track a video where it stays in view")
         K = speaker.parameter_count
         found = np.full((T, K), np.nan)
@@ -195,7 +203,9 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
             waiting = []
             for _ in range(min(_ADAPT_FRAMES, T)):
                 waiting.append(_field_rows(next(frames)[1], field))
-            analyser.adapt(waiting, start[:len(waiting)], poses[:len(waiting)])
+            seen = [t for t in range(len(waiting)) if usable[t]]
+            if seen:
+                analyser.adapt([waiting[t] for t in seen], start[seen], poses[seen])
             previous, correction = start[first], np.zeros(6)
 
             def frames_in_order():
@@ -206,8 +216,16 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
             for t, image in enumerate(shown.bar(frames_in_order(), total=T, desc="analysing by synthesis")):
                 if t >= T:
                     break
+                if not usable[t]:  # no face: the last analysed frame's answer held, the frame marked
+                    found[t], rigid_found[t] = previous, rigid_found[t - 1] if t > first else head[first]
+                    writer.writerow([t, f"{t / capture.fps:.6g}", *(f"{v:.6g}" for v in previous)])
+                    if draw is not None:
+                        draw(np.ascontiguousarray(image))
+                    continue
+                restart = t == first or not usable[t - 1]  # after a stretch without a face: the landmarks
                 clock = time.perf_counter()
-                answer = analyser.analyse(image, previous if t else start[t], poses[t], correction)
+                answer = analyser.analyse(image, start[t] if restart else previous, poses[t],
+                                          np.zeros(6) if restart else correction)
                 seconds += time.perf_counter() - clock
                 previous, correction = answer.parameters, answer.correction
                 found[t], evaluations[t], cost[t] = answer.parameters, answer.evaluations, answer.cost
@@ -219,7 +237,7 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
                     xy = analyser.pixels(full, answer.pose)
                     triangles = speaker.triangles if appearance.triangles is None else appearance.triangles
                     _draw(picture, xy, triangles, (60, 200, 60))
-                    _draw(picture, xy[mesh.points], mesh.triangles, (250, 220, 40))
+                    _draw(picture, xy[analyser.mesh.points], analyser.mesh.triangles, (250, 220, 40))
                     draw(picture)
             if np.isnan(found).any():
                 raise InputError(f"{video}: decoding gave fewer frames than tracking "
@@ -231,4 +249,4 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
                 from .speakerclone import write_motion_csv
 
                 write_motion_csv(motion_out, rigid_found)
-    return TrackedSpeech(found, rigid_found, evaluations, cost, start, seconds, stream, camera, mouth_width)
+    return TrackedSpeech(found, rigid_found, evaluations, cost, start, seconds, stream, camera, mouth_width, usable)

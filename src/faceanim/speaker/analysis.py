@@ -1,20 +1,35 @@
-"""Analysis by synthesis with the speaker's clone: render its lips, compare with the frame, move the
+"""Analysis by synthesis with the speaker's clone: render its mouth, compare with the frame, move the
 articulatory parameters (the ICP platform's tracker, Elisei, Odisio and Bailly 2001).
 
-Per frame, the frame's lip-probability image (the appearance's colour model, adapted to the video's
-lighting) over a small box around the mouth is compared (mean squared difference) with the clone's
-lip-probability image in the same box: the key postures' lip-probability textures mixed with the
-appearance's blending weights, drawn on the :class:`AnalysisMesh` (the lips and their surroundings,
-at most 50 triangles). The difference is minimised over the 6 articulatory parameters by the simplex
-method (Nelder-Mead, 7 vertices), from the previous frame's answer, with a cap on evaluations;
-optionally over the rigid motion too (6 more: a rotation about the mouth and a translation, on top of
-the tracker's head pose).
+Per frame, a small box around the mouth (1.5 x 0.85 mouth widths, averaged down to about 64 pixels
+across) of the frame is compared with the clone drawn in the same box. Two comparisons:
 
-The analysis mesh is chosen from the model's points by name: 12 points of the outer lip contour and 14
-of the inner (MediaPipe's lip landmarks), and a ring of 8 points around the mouth (the model's points
-nearest to an ellipse of 0.95 x 0.7 mouth widths), triangulated again (Delaunay over the rest shape's
-x, y): 34 points, at most 50 triangles (inner points are dropped, last first, while there are more).
-The key textures are read at each point's UV: the analysis mesh is a coarser cut of the same surface.
+* ``"colour"`` (the default): the clone's key textures (RGB) mixed with the appearance's blending
+  weights and drawn on the synthesis mesh's own triangles around the mouth (:func:`mouth_mesh`: the
+  surface the clone's renderer draws there, same vertices, UV and triangles), against the frame's
+  colours after a least-squares gain and offset per channel (a change of lighting or white balance
+  costs nothing); the difference is the share of the box's colour variance the clone leaves
+  unexplained. On frames the clone itself drew the minimum lies at the true parameters.
+* ``"probability"`` (the original's): the frame's lip-probability image (the appearance's colour
+  model, adapted to the video's lighting) against the key postures' lip-probability textures drawn on
+  the reduced :class:`AnalysisMesh` (:func:`analysis_mesh`, at most 50 triangles), after a gain and an
+  offset. The colour-to-probability map is not linear, so a blurred frame and a mix of probability
+  textures are differently shaped images: the minimum lies away from the truth even on the clone's own
+  frames (``benchmarks/results/clone_tracking.md`` of the previous round).
+
+The difference is minimised over the 6 articulatory parameters by the simplex method (Nelder-Mead,
+7 vertices), from the previous frame's answer, with a cap on evaluations; optionally over the rigid
+motion too (6 more: a rotation about the mouth and a translation, on top of the tracker's head pose).
+With ``"colour"`` the simplex is shaped first (:meth:`CloneAnalyser._shaped_simplex`): the residual's
+finite differences give a Gauss-Newton Hessian, one damped Gauss-Newton step is tried, and the first
+vertices lie along the Hessian's eigenvectors, as long as the valley is wide in each, so correlated
+parameters do not stall the simplex.
+
+The reduced analysis mesh is chosen from the model's points by name: 12 points of the outer lip
+contour and 14 of the inner (MediaPipe's lip landmarks), and a ring of 8 points around the mouth (the
+model's points nearest to an ellipse of 0.95 x 0.7 mouth widths), triangulated again (Delaunay over
+the rest shape's x, y): 34 points, at most 50 triangles (inner points are dropped, last first, while
+there are more). The key textures are read at each point's UV: a coarser cut of the same surface.
 """
 
 from __future__ import annotations
@@ -47,15 +62,25 @@ _RING_AXES = (0.95, 0.7)  # in mouth widths: the ring lies beyond the box
 _BOX = (1.5, 0.85)  # the box around the mouth, in mouth widths: the lips and their surroundings, not the nostrils
 _BOX_PIXELS = 64  # the box's width in its own pixels (the frame is averaged down to it)
 # The prior on the articulatory parameters (unit variance over the build frames): ``prior x mean(a^2)``
-# is added to the mean squared difference of lip probability, holding what the image cannot see
-# (protrusion seen from the front) near the speaker's usual range. Chosen on the build frames of the
-# speech clips (tuning), not on the held-out frames the benchmark reports.
+# is added to the difference, holding what the image cannot see near the speaker's usual range.
+# Lip probability: chosen on the build frames of the speech clips (tuning), not on the held-out frames
+# the benchmark reports. Colour: none; on the build frames its weight (0, 2e-4, 2e-3) left the lip
+# opening's and width's correlation with MediaPipe within 0.03 of each other, while any pull toward 0
+# biases the shallow parameters (lower lip, corners) by a third of a standard deviation on the clone's
+# own frames; the walls beyond the speaker's range (DEFAULT_WALLS) keep the simplex from wandering.
 DEFAULT_PRIOR = 1e-2
-DEFAULT_COLOUR_PRIOR = 2e-3
+DEFAULT_COLOUR_PRIOR = 0.0
 # The shaped simplex (CloneAnalyser._shaped_simplex): finite differences over this share of a first step;
 # the Gauss-Newton step's damping (Levenberg-Marquardt, on the Hessian's diagonal) and its longest move in
 # first steps; the cost each edge of the simplex raises, as a share of the start's.
 _DIFFERENCE = 0.25
+# The walls beyond the model's parameter ranges (CloneAnalyser._beyond): their weight per squared standard
+# deviation and how far beyond the build frames' range (in standard deviations) they begin.
+DEFAULT_WALLS = 0.05
+_RANGE_MARGIN = 1.0
+# The clone's shift in the image (shift=True): the simplex's first step and where its wall begins, box pixels.
+_STEP_SHIFT = 0.5
+_MAX_SHIFT = 4.0
 _DAMPING = 0.1
 _MAX_MOVE = 4.0
 _SIMPLEX_RISE = 0.5
@@ -125,11 +150,14 @@ def _lip_points(model: SpeakerModel) -> tuple[list[int], list[int]]:
     return outer, inner
 
 
-def mouth_mesh(model: SpeakerModel, triangles=None) -> AnalysisMesh:
+def mouth_mesh(model: SpeakerModel, triangles=None, opening=None) -> AnalysisMesh:
     """The synthesis mesh around the mouth: the triangles of ``triangles (F, 3)`` (into the model's
     mobile then static points; default the model's) whose centre at rest lies in the region
     :data:`_MOUTH_REGION` about the lips, so that the analysis draws exactly the surface the clone's
-    renderer draws there (same vertices, same UV, same triangles).
+    renderer draws there (same vertices, same UV, same triangles). ``opening``: the indices of the
+    inner lip contour (``Appearance.lip_inner``); the triangles with all three corners on it (those
+    spanning the mouth's opening, textured with the key frames' teeth and tongue) are left out, so the
+    opening is compared as a region of its own colour.
 
     Raises
     ------
@@ -143,7 +171,10 @@ def mouth_mesh(model: SpeakerModel, triangles=None) -> AnalysisMesh:
     centre, width = lips.mean(axis=0), np.ptp(lips[:, 0])
     d = (everything[t].mean(axis=1) - centre)[:, :2] / width
     across, above, below = _MOUTH_REGION
-    t = t[(np.abs(d[:, 0]) <= across) & (d[:, 1] <= above) & (d[:, 1] >= -below)]
+    keep = (np.abs(d[:, 0]) <= across) & (d[:, 1] <= above) & (d[:, 1] >= -below)
+    if opening is not None and len(opening):
+        keep &= ~np.isin(t, np.asarray(opening, dtype=np.int64)).all(axis=1)
+    t = t[keep]
     points = np.unique(t)
     if not np.isin(outer + inner, points).all():
         raise InputError("the speaker model's triangles do not hold its lip contour points")
@@ -219,14 +250,15 @@ def rigid_transform(correction, centre) -> np.ndarray:
 @dataclass(frozen=True, eq=False)
 class FrameAnswer:
     """One frame's analysis: ``parameters (K,)``, the rigid ``correction (6,)`` (zeros without
-    ``rigid``), the ``pose (4, 4)`` it gives, the ``evaluations`` spent and the final ``cost`` (mean
-    squared difference of lip probability over the box)."""
+    ``rigid``), the ``pose (4, 4)`` it gives, the ``evaluations`` spent, the final ``cost`` (the
+    difference) and the clone's ``shift (2,)`` in box pixels (zeros without ``shift``)."""
 
     parameters: np.ndarray
     correction: np.ndarray
     pose: np.ndarray
     evaluations: int
     cost: float
+    shift: np.ndarray | None = None
 
 
 class _Spent(Exception):
@@ -260,8 +292,9 @@ class CloneAnalyser:
         the frames the camera was fitted on.
     camera : (3, 4) float64, optional
         The video's camera (:mod:`.camera`); default the appearance's (the video it was made from).
-    prior : float
-        Weight of the parameters' prior (see :data:`DEFAULT_PRIOR`).
+    prior : float, optional
+        Weight of the parameters' prior (see :data:`DEFAULT_PRIOR`); default :data:`DEFAULT_PRIOR` for
+        lip probability, :data:`DEFAULT_COLOUR_PRIOR` (none) for colour.
     photometric : bool
         Compare after fitting the clone's probabilities to the frame's by a gain and an offset
         (default); False: the plain mean squared difference.
@@ -271,12 +304,27 @@ class CloneAnalyser:
         What is compared (see the module's docstring): ``"colour"`` (default), the clone's colours drawn
         on the synthesis mesh around the mouth against the frame's, after a gain and an offset per
         channel; ``"probability"``, the lip probabilities on the reduced mesh.
+    precondition : bool
+        Shape the simplex by the cost first (colour only; :meth:`_shaped_simplex`); False: the plain
+        simplex of first steps along each parameter.
+    open_mouth : bool
+        Leave out the triangles spanning the mouth's opening (colour only; :func:`mouth_mesh`): the
+        opening is then compared as a region of its own colour. Off by default: on the build frames it
+        helped one speaker's lip opening and hurt the other's.
+    walls : float
+        Weight of the walls beyond the speaker's parameter ranges (:data:`DEFAULT_WALLS`).
+    box_pixels : int, optional
+        The box's width in its own pixels (default 64).
+    xatol, fatol : float
+        The simplex's stopping tolerances (parameters, difference); the cap usually comes first.
     """
 
     def __init__(self, model: SpeakerModel, appearance, *, width: int, height: int, mouth_width: float,
                  max_evals: int = DEFAULT_MAX_EVALS, rigid: bool = False, raster: str | None = None, field=None,
                  camera=None, prior: float | None = None, photometric: bool = True, blur: float = 0.0,
-                 compare: str = "colour", precondition: bool = True):
+                 compare: str = "colour", precondition: bool = True, open_mouth: bool = False,
+                 walls: float = DEFAULT_WALLS, box_pixels: int | None = None, xatol: float = 1e-3,
+                 fatol: float = 1e-7, shift: bool = False):
         if raster is not None and raster not in RASTERS:
             raise ValueError(f"raster must be None or one of {', '.join(RASTERS)}, got {raster!r}")
         if compare not in COMPARES:
@@ -290,9 +338,15 @@ class CloneAnalyser:
             raise ValueError(f"max_evals must be a whole number from {K + 1} (the simplex's vertices), "
                              f"got {max_evals!r}")
         self.model, self.appearance, self.compare = model, appearance, compare
-        self.mesh = analysis_mesh(model) if compare == "probability" else mouth_mesh(model, appearance.triangles)
+        self.open_mouth = bool(open_mouth)
+        self.mesh = analysis_mesh(model) if compare == "probability" else mouth_mesh(
+            model, appearance.triangles, appearance.lip_inner if open_mouth else None)
         self.rigid, self.max_evals, self.field, self.prior = bool(rigid), int(max_evals), field, float(prior)
         self.photometric, self.blur, self.precondition = bool(photometric), float(blur), bool(precondition)
+        self.walls, self.shift = float(walls), bool(shift)
+        self._xatol, self._fatol = float(xatol), float(fatol)
+        ranges = np.asarray(model.ranges, dtype=np.float64)
+        self._ranges = (ranges[:, 0] - _RANGE_MARGIN, ranges[:, 1] + _RANGE_MARGIN)
         self.width, self.height = int(width), int(height)
         P = len(model.names)
         N = P + len(model.static_names)
@@ -307,10 +361,11 @@ class CloneAnalyser:
         self._gram = flat @ flat.T / N
         self._key_cross = offsets.reshape(len(offsets), -1) @ flat.T / N
         self._key_square = (offsets.reshape(len(offsets), -1) ** 2).sum(axis=1) / N
+        self._influence = np.asarray(appearance.influence, dtype=np.float64)
         self._camera = as_array(appearance.camera if camera is None else camera, "camera", shape=(3, 4))
         self._rows = 0.5 if field else 1.0
         # the box: its size fixed for the video, its place following the mouth
-        self.factor = max(1, int(round(_BOX[0] * mouth_width / _BOX_PIXELS)))
+        self.factor = max(1, int(round(_BOX[0] * mouth_width / (box_pixels or _BOX_PIXELS))))
         self.box_width = int(np.ceil(_BOX[0] * mouth_width / self.factor))
         self.box_height = max(4, int(np.ceil(_BOX[1] * mouth_width * self._rows / self.factor)))
         uv = np.asarray(appearance.uv, dtype=np.float64)[self.mesh.points]
@@ -396,21 +451,26 @@ class CloneAnalyser:
 
         a = np.asarray(parameters, dtype=np.float64)
         square = self._key_square - 2.0 * self._key_cross @ a + a @ self._gram @ a
+        if square.min() > 1e-18:  # away from a key posture: c_q / d_q normalised, blend_weights' ratio
+            share = self._influence / np.sqrt(square)
+            return share / share.sum()
         return blend_weights(np.sqrt(np.maximum(square, 0.0)), self.appearance.influence)
 
-    def clone_image(self, parameters, pose, origin) -> np.ndarray:
+    def clone_image(self, parameters, pose, origin, shift=(0.0, 0.0)) -> np.ndarray:
         """``(box_height, box_width) float32``: the clone's lip probability over the box at ``origin``
-        (``(box_height, box_width, 3)``, its colours, -1 where the mesh does not reach, for ``"colour"``)."""
+        (``(box_height, box_width, 3)``, its colours, -1 where the mesh does not reach, for ``"colour"``),
+        moved by ``shift (2,)`` box pixels."""
         points = self._sub_rest + np.tensordot(parameters, self._sub_basis, axes=1)
-        xy = (self.pixels(points, pose) - origin) / self.factor
+        xy = (self.pixels(points, pose) - origin) / self.factor + np.asarray(shift, dtype=np.float64)
         return self.raster(xy, self.weights(parameters))
 
     def lip_mask(self, parameters, pose, origin, shape) -> np.ndarray:
         """(h, w) bool: the frame's pixels (from ``origin``, ``shape``) between the clone's outer and
-        inner lip contours at ``parameters`` and ``pose``."""
+        inner lip contours at ``parameters`` and ``pose`` (a pixel's centre inside the polygon)."""
         import cv2
 
-        xy = self.pixels(self.full_points(parameters)[self.mesh.points], pose) - origin
+        # cv2 fills about integer coordinates as pixel centres; ours lie at j + 0.5
+        xy = self.pixels(self.full_points(parameters)[self.mesh.points], pose) - origin - 0.5
         mask = np.zeros(shape, np.uint8)
         cv2.fillPoly(mask, [np.round(xy[self.mesh.outer] * 16).astype(np.int32)], 1, shift=4)
         cv2.fillPoly(mask, [np.round(xy[self.mesh.inner] * 16).astype(np.int32)], 0, shift=4)
@@ -502,12 +562,22 @@ class CloneAnalyser:
         gain = max(float(c @ t) / cc, 0.0) if cc > 0 else 0.0
         return float(np.mean((t - gain * c) ** 2))
 
+    def _beyond(self, parameters: np.ndarray) -> float:
+        """The walls on the parameters: ``walls x`` the squared distance (in standard deviations) beyond
+        the model's ranges widened by :data:`_RANGE_MARGIN`, 0 inside; no pull within the speaker's
+        range (the prior's), but no wandering far beyond it where the image cannot tell."""
+        lo, hi = self._ranges
+        out = np.maximum(parameters - hi, 0.0) + np.maximum(lo - parameters, 0.0)
+        return self.walls * float(out @ out)
+
     def _prior_hessian(self, dimension: int) -> np.ndarray:
         """(D,) the diagonal of the prior's Hessian over the simplex's D coordinates."""
         K = self.model.parameter_count
         h = np.full(dimension, 2.0 * self.prior / K)
         if self.rigid:
-            h[K:] = 2.0 * self.prior / 6.0 / _RIGID_STEPS ** 2
+            h[K:K + 6] = 2.0 * self.prior / 6.0 / _RIGID_STEPS ** 2
+        if self.shift:
+            h[-2:] = 0.0
         return h
 
     def _shaped_simplex(self, x0: np.ndarray, evaluate) -> np.ndarray:
@@ -531,10 +601,10 @@ class CloneAnalyser:
         gradient = 2.0 * J.T @ r0 / self._scale
         gradient[:K] += prior[:K] * x0[:K]
         if self.rigid:
-            gradient[K:] += prior[K:] * x0[K:]
+            gradient[K:K + 6] += prior[K:K + 6] * x0[K:K + 6]
         H = 2.0 * J.T @ J / self._scale + np.diag(prior)
         damped = H + _DAMPING * np.diag(np.diag(H))
-        move = -np.linalg.solve(damped, gradient)
+        move = -np.linalg.lstsq(damped, gradient, rcond=None)[0]  # lstsq: a parameter the box does not see
         reach = np.max(np.abs(move) / steps)
         if reach > _MAX_MOVE:  # at most a few first steps in any coordinate
             move *= _MAX_MOVE / reach
@@ -550,18 +620,33 @@ class CloneAnalyser:
         K = self.model.parameter_count
         steps = np.full(len(x0), _STEP_ARTICULATORY)
         if self.rigid:
-            steps[K:K + 3], steps[K + 3:] = _STEP_ROTATION, _STEP_TRANSLATION
+            steps[K:K + 3], steps[K + 3:K + 6] = _STEP_ROTATION, _STEP_TRANSLATION
+        if self.shift:
+            steps[-2:] = _STEP_SHIFT
         return np.vstack([x0, x0 + np.diag(steps)])
 
-    def analyse(self, image, start, base_pose, correction=None) -> FrameAnswer:
-        """One frame: the parameters (and with ``rigid`` the correction) minimising the difference of
-        lip probability, from ``start (K,)`` (and ``correction (6,)``); the box placed at the start.
+    def _unpack(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The simplex's coordinates as (parameters (K,), rigid correction (6,), shift (2,))."""
+        K = self.model.parameter_count
+        correction = x[K:K + 6] if self.rigid else np.zeros(6)
+        shift = x[len(x) - 2:] if self.shift else np.zeros(2)
+        return x[:K], correction, shift
+
+    def _pack(self, parameters, correction, shift) -> np.ndarray:
+        return np.concatenate([parameters, *([correction] if self.rigid else []), *([shift] if self.shift else [])])
+
+    def analyse(self, image, start, base_pose, correction=None, *, also=None, shift=None) -> FrameAnswer:
+        """One frame: the parameters (and with ``rigid`` the correction, with ``shift`` the clone's
+        shift in the image) minimising the difference, from ``start (K,)`` (and ``correction (6,)``,
+        ``shift (2,)``); the box placed at the start. ``also (M, K)``: other starts (the landmark-based
+        analysis of the frame), each costing one evaluation; the simplex starts from the best of them.
 
         ``image``: ``(height, width, 3) uint8`` (one field's rows with ``field``); ``base_pose (4, 4)``:
         the tracker's head pose on that frame."""
         K = self.model.parameter_count
         start = as_array(start, "start", shape=(K,))
         correction = np.zeros(6) if correction is None else as_array(correction, "correction", shape=(6,))
+        shift = np.zeros(2) if shift is None or not self.shift else as_array(shift, "shift", shape=(2,))
         base_pose = as_array(base_pose, "base_pose", shape=(4, 4))
         origin = self.box_origin(start, self.pose_of(base_pose, correction))
         if not self.box_inside(origin):
@@ -580,32 +665,41 @@ class CloneAnalyser:
             if count >= self.max_evals:
                 raise _Spent
             count += 1
-            pose = self.pose_of(base_pose, x[K:]) if self.rigid else base_pose
-            clone = self.clone_image(x[:K], pose, origin)
+            a, c, moved = self._unpack(x)
+            pose = self.pose_of(base_pose, c) if self.rigid else base_pose
+            clone = self.clone_image(a, pose, origin, moved)
             if residual:
                 r = self._colour_residual(clone)
                 value = float(r @ r) / self._scale
             else:
                 value = self._difference(clone, target)
-            value += self.prior * np.mean(x[:K] ** 2)
+            value += self.prior * np.mean(a ** 2) + self._beyond(a)
             if self.rigid:  # the correction held near the tracker's pose: one simplex step costs as one std
-                value += self.prior * np.mean((x[K:] / _RIGID_STEPS) ** 2)
+                value += self.prior * np.mean((c / _RIGID_STEPS) ** 2)
+            if self.shift:  # the shift held within a few pixels of the tracker's place
+                value += self.walls * float(np.sum(np.maximum(np.abs(moved) - _MAX_SHIFT, 0.0) ** 2))
             if value < best[0]:
                 best[0], best[1] = value, x.copy()
             return (value, r) if residual else value
 
-        x0 = np.concatenate([start, correction]) if self.rigid else start.copy()
+        x0 = self._pack(start, correction, shift)
         try:
+            if also is not None:
+                evaluate(x0)
+                for other in np.asarray(also, dtype=np.float64).reshape(-1, K):
+                    if np.isfinite(other).all():
+                        evaluate(self._pack(other, correction, shift))
+                x0 = best[1].copy()
             simplex = self._simplex(x0)
             if self.compare == "colour" and self.precondition:
                 simplex = self._shaped_simplex(x0, evaluate)
             minimize(evaluate, simplex[0], method="Nelder-Mead",
-                     options={"initial_simplex": simplex, "maxfev": self.max_evals, "xatol": 1e-3, "fatol": 1e-7})
+                     options={"initial_simplex": simplex, "maxfev": self.max_evals, "xatol": self._xatol,
+                              "fatol": self._fatol})
         except _Spent:
             pass
-        x = best[1]
-        found = x[K:] if self.rigid else np.zeros(6)
-        return FrameAnswer(x[:K], found, self.pose_of(base_pose, found), count, best[0])
+        a, found, moved = self._unpack(best[1])
+        return FrameAnswer(a, found, self.pose_of(base_pose, found), count, best[0], moved)
 
     def close(self):
         self.raster.close()

@@ -120,7 +120,9 @@ class NumpyLipRaster(_Raster):
     def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0):
         super().__init__(triangles, uv, textures, width=width, height=height, background=background)
         Q, s, r = self.textures.shape[:3]
-        self._flat = np.ascontiguousarray(self.textures.reshape(Q, -1))  # (Q, s*r*C): mixed once a call
+        self._flat = np.ascontiguousarray(self.textures.reshape(Q, -1))  # (Q, s*r*C)
+        # texel-major, every key's channels side by side: a texel's Q*C values read at once, mixed after
+        self._texels = np.ascontiguousarray(np.moveaxis(self.textures.reshape(Q, s * r, -1), 0, 1).reshape(s * r, -1))
         self._size = (s, r)
         self._uv_corners = self.uv[self.triangles]  # (F, 3, 2)
 
@@ -146,7 +148,9 @@ class NumpyLipRaster(_Raster):
         ys = corners[:, :, 1]
         top = np.maximum(np.ceil(ys.min(axis=1) - 0.5), 0).astype(np.int64)
         bottom = np.minimum(np.floor(ys.max(axis=1) - 0.5), H - 1).astype(np.int64)
-        rows = np.where(solid, np.maximum(bottom - top + 1, 0), 0)
+        xs = corners[:, :, 0]
+        seen = solid & (xs.max(axis=1) >= 0.5) & (xs.min(axis=1) <= W - 0.5)  # a triangle beside the box: none
+        rows = np.where(seen, np.maximum(bottom - top + 1, 0), 0)
         total = int(rows.sum())
         if total == 0:
             return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64)
@@ -197,7 +201,8 @@ class NumpyLipRaster(_Raster):
             k = au.reshape(-1, 6)[triangle]
             x, y = px + 0.5, py + 0.5
             uv = np.stack([k[:, 0] * x + k[:, 1] * y + k[:, 2], k[:, 3] * x + k[:, 4] * y + k[:, 5]], axis=1)
-            image[py * self.width + px] = self._bilinear((w @ self._flat).reshape(-1, C), uv)
+            read = self._bilinear(self._texels, uv).reshape(len(uv), len(w), C)  # each key's texture at each pixel
+            image[py * self.width + px] = np.matmul(w, read)
         return image.reshape((self.height, self.width) + ((C,) if self.textures.ndim == 4 else ()))
 
     def _bilinear(self, texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
