@@ -6,6 +6,8 @@ from faceanim.errors import InputError
 from faceanim.geometry import Mesh, RbfWarp
 from faceanim.geometry.fastop import Float32Operator
 from faceanim.geometry.nicp import NicpOptions, register_surface
+from faceanim.geometry.project import project_points
+from faceanim.geometry.topology import submesh
 from faceanim.retarget import ControlPairs, DenseTransfer
 from faceanim.retarget.contours import matched_contours
 from faceanim.retarget.correspondence import clear_cache, register_faces
@@ -37,6 +39,30 @@ def test_registration_onto_a_bent_copy_recovers_the_correspondence():
     assert np.sqrt((error ** 2).mean()) < 0.2 * spacing  # the correspondence, not only the surface
     assert reg.fit < 1e-3
     assert reg.landmark_error < 0.05 * spacing           # landmarks honoured
+
+
+def test_the_reverse_term_covers_a_target_that_ends_where_the_source_runs_on():
+    """The target is the middle of a bent dome; the source is the whole dome. Each target vertex pulls the
+    source onto itself, so the registered source covers the target up to its border."""
+    source = dome()
+    truth = bend(source.vertices)
+    grid = np.arange(576).reshape(24, 24)
+    middle = np.zeros(576, dtype=bool)
+    middle[grid[4:20, 4:20].ravel()] = True
+    target, _ = submesh(Mesh(truth, source.triangles), middle)
+    ids = grid[[5, 5, 18, 18, 12], [5, 18, 5, 18, 12]]
+    start = source.vertices + RbfWarp(source.vertices[ids], truth[ids] - source.vertices[ids])(source.vertices)
+    spacing = np.median(np.linalg.norm(np.diff(source.vertices.reshape(24, 24, 3), axis=1), axis=2))
+    gaps = {}
+    for weight in (0.0, 1.0):
+        reg = register_surface(source, target, source_landmarks=ids, target_points=truth[ids], initial=start,
+                               options=NicpOptions(reverse_weight=weight))
+        gaps[weight] = project_points(Mesh(reg.vertices, source.triangles), target.vertices).distances.max()
+        error = np.linalg.norm(reg.vertices[middle] - truth[middle], axis=1)
+        assert np.sqrt((error ** 2).mean()) < 0.2 * spacing  # the correspondence still holds
+    assert gaps[1.0] < 0.02 * spacing and gaps[1.0] < 0.5 * gaps[0.0]
+    with pytest.raises(ValueError, match="reverse_weight must be >= 0, got -1"):
+        NicpOptions(reverse_weight=-1.0)
 
 
 def test_meshes_too_far_apart_without_landmarks_fail_with_the_residual():

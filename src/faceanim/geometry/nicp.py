@@ -63,6 +63,13 @@ class NicpOptions:
     fit_tolerance, landmark_tolerance
         After the last stage: the median of the target's distances to the registered source, and
         the RMS landmark error, above which the registration is declared failed.
+    reverse_weight
+        Weight of the reverse data term, relative to the forward one: each target vertex pulls the
+        closest compatible point of the source surface (the same angle and distance tests, refused
+        on the source's open border) onto itself, so every part of the target is covered, up to its
+        own border, even where the source runs on beyond it (a lip that turns into a mouth socket
+        the target lacks). The term is scaled by the ratio of the vertex counts, so it weighs the
+        same whatever the target's resolution. 0 turns it off (Amberg's one-way data term).
     """
 
     stiffness: tuple = (50.0, 20.0, 10.0, 5.0, 2.0, 1.0, 0.5)
@@ -74,6 +81,7 @@ class NicpOptions:
     max_distance: float = 0.1
     fit_tolerance: float = 0.01
     landmark_tolerance: float = 0.02
+    reverse_weight: float = 0.0
 
     def __post_init__(self):
         if not self.stiffness or any(not a > 0 for a in self.stiffness):
@@ -86,6 +94,8 @@ class NicpOptions:
             raise ValueError(f"max_angle must be in (0, 180] degrees, got {self.max_angle}")
         if self.iterations < 1:
             raise ValueError(f"iterations must be >= 1, got {self.iterations}")
+        if not self.reverse_weight >= 0:
+            raise ValueError(f"reverse_weight must be >= 0, got {self.reverse_weight}")
 
     def betas(self) -> np.ndarray:
         return np.broadcast_to(np.asarray(self.landmark_weight, dtype=np.float64), (len(self.stiffness),))
@@ -182,6 +192,11 @@ def register_surface(source: Mesh, target: Mesh, *, source_landmarks=(), target_
     identity = np.tile(np.vstack([np.eye(3), np.zeros((1, 3))]), (n, 1))  # (4n, 3): X_i = I for every vertex
     used = np.zeros(n, dtype=bool)
     used[np.unique(source.triangles)] = True
+    reverse = None
+    if options.reverse_weight > 0:
+        t_used = np.unique(tgt.triangles)
+        reverse = (t_used, tgt.vertex_normals[t_used], *_border_flags(Mesh(x, source.triangles)),
+                   options.reverse_weight * used.sum() / len(t_used))
     solves = 0
     matched = np.zeros(n, dtype=bool)
     for alpha, beta in zip(options.stiffness, options.betas(), strict=True):
@@ -192,6 +207,12 @@ def register_surface(source: Mesh, target: Mesh, *, source_landmarks=(), target_
             Dw = sparse.diags(w) @ D
             lhs = alpha * alpha * stiffness_matrix + (Dw.T @ D)
             rhs = Dw.T @ u
+            if reverse is not None:
+                R, r_points, r_weight = _reverse(source.triangles, homog, current, tgt.vertices, reverse,
+                                                 options.max_angle, options.max_distance)
+                Rw = sparse.diags(np.full(R.shape[0], r_weight)) @ R
+                lhs = lhs + Rw.T @ R
+                rhs = rhs + Rw.T @ r_points
             if len(ids):
                 Lw = sparse.diags(beta * beta * lw) @ DL
                 lhs = lhs + Lw.T @ DL
@@ -288,6 +309,39 @@ def _correspondences(source_triangles, current, target: Mesh, search, used, max_
     behind = (which != rows) & (nearest < _SHADOW * best_d) & (best_d > _SHADOW * spacing)
     accepted[rows] = ok & ~behind
     return points, accepted
+
+
+def _reverse(source_triangles, homog, current, target_vertices, reverse, max_angle, max_distance):
+    """The reverse data term: rows ``(R, 4V)`` mapping the transforms to the closest compatible source points
+    of the accepted target vertices, and those target vertices ``(R, 3)``."""
+    t_used, t_normals, opposite, border_vertex, weight = reverse
+    tris = source_triangles
+    corners = current[tris]
+    centroids = corners.mean(axis=1)
+    reach = float(np.linalg.norm(corners - centroids[:, None], axis=2).max())
+    k = min(_CANDIDATES, len(tris))
+    pts = target_vertices[t_used]
+    _, cand = cKDTree(centroids).query(pts, k=k, distance_upper_bound=max_distance + reach)
+    cand = cand.reshape(len(pts), k)
+    valid = cand < len(tris)
+    cand = np.where(valid, cand, 0)
+    closest, bary = closest_point_on_triangles(np.repeat(pts, k, axis=0), corners[cand.ravel()])
+    d = np.where(valid, np.linalg.norm(closest - np.repeat(pts, k, axis=0), axis=1).reshape(len(pts), k), np.inf)
+    face_normals = Mesh(current, tris).face_normals
+    facing = np.einsum("nd,nkd->nk", t_normals, face_normals[cand]) > np.cos(np.radians(max_angle))
+    best_d, face, weights, _ = _best(np.where(facing, d, np.inf), k, cand, bary)
+    eps = 1e-9
+    on_border = (opposite[face] & (weights < eps)).any(axis=1) | \
+        (border_vertex[tris[face]] & (weights > 1 - eps)).any(axis=1)
+    ok = np.isfinite(best_d) & (best_d < max_distance) & ~on_border
+    face, weights = face[ok], weights[ok]
+    n = len(current)
+    rows = np.repeat(np.arange(ok.sum()), 12)
+    corner_ids = tris[face]                                    # (R, 3)
+    cols = (4 * corner_ids[:, :, None] + np.arange(4)).reshape(-1, 12)
+    vals = (weights[:, :, None] * homog[corner_ids]).reshape(-1, 12)
+    R = sparse.csr_matrix((vals.ravel(), (rows, cols.ravel())), shape=(ok.sum(), 4 * n))
+    return R, pts[ok], weight
 
 
 def _best(d, k, cand, bary):

@@ -13,13 +13,16 @@ control points, which gives every source vertex on a contour a point on the targ
 from __future__ import annotations
 
 import numpy as np
+from scipy import sparse
 from scipy.sparse import csgraph
 
 from ..geometry.mesh import Mesh
 from ..geometry.surface import edge_graph
+from ..geometry.topology import component_labels, open_edges
 from ..mpeg4.multipie import THESIS_16
 
-__all__ = ["LAYOUTS", "LAYOUT_SIZES", "LANDMARK_WEIGHTS", "contour_paths", "matched_contours"]
+__all__ = ["LAYOUTS", "LAYOUT_SIZES", "LANDMARK_WEIGHTS", "OPENINGS", "RIMMED", "contour_paths", "matched_contours",
+           "opening_rims", "opening_sides"]
 
 # The jaw line (points 0-16) is left out: it is a silhouette, not a line on the skin, and the paths
 # through it differ between faces by up to 0.7 cm on ICT-FaceKit's identities.
@@ -122,3 +125,159 @@ def matched_contours(source: Mesh, target: Mesh, source_ids, target_ids, layout:
     vertices = np.fromiter(found.keys(), dtype=np.int64, count=len(found))
     points = np.array(list(found.values())).reshape(-1, 3)
     return vertices, points
+
+
+
+#: The openings of each layout, where the skin turns in towards a socket: the loop of contours (positions in
+#: ``LAYOUTS[layout]``) along which the lips or the lids close.
+OPENINGS: dict[str, tuple] = {
+    "ibug68": ((10, 11), (4, 5), (6, 7)),  # mouth (inner lip lines), right eye, left eye (their lids)
+    "thesis16": ((0, 1),),                  # mouth (the outer lip lines; this layout has no inner ones)
+}
+#: The openings whose rim :func:`opening_rims` places: the eyes'. How deep the lips' inner surface runs
+#: before the mouth socket differs between faces with nothing in the surfaces to show it (on ICT-FaceKit's
+#: tuning pairs the true rim lay 0.5 to 1.2 times as deep on the source as on the target, against loops
+#: of about equal length), so a mouth rim placed by depth pulls the inner lip to the wrong place.
+RIMMED: dict[str, tuple] = {"ibug68": ((4, 5), (6, 7)), "thesis16": ()}
+
+
+def _loop(mesh: Mesh, curves, contours) -> tuple[np.ndarray, np.ndarray, int]:
+    """The closed loop along ``contours`` (from :func:`contour_paths`): its vertex ids, each one's parameter
+    (the index of the stretch it lies on plus its fraction of that stretch's arc length), and the number
+    of stretches (the parameter's period)."""
+    ids, params = [], []
+    for path in (p for c in contours for p in curves[c]):
+        params.append(len(ids) + _arc_parameter(mesh.vertices[path])[:-1])
+        ids.append(path[:-1])
+    return np.concatenate(ids), np.concatenate(params), len(ids)
+
+
+def _inside(mesh: Mesh, loop: np.ndarray, outside: np.ndarray, *, depth: bool = True):
+    """Which vertices lie inside ``loop`` (cut the loop out: the parts holding no ``outside`` vertex), their
+    distance from the loop along the surface inside, and the loop vertex nearest each (-1 where none)."""
+    V = len(mesh.vertices)
+    off_loop = np.ones(V, dtype=bool)
+    off_loop[loop] = False
+    graph = edge_graph(mesh)
+    cut = sparse.diags(off_loop.astype(np.float64))
+    _, label = csgraph.connected_components(cut @ graph @ cut, directed=False)
+    used = np.zeros(V, dtype=bool)
+    used[mesh.triangles] = True
+    part = component_labels(mesh)
+    inside = off_loop & used & ~np.isin(label, label[outside[off_loop[outside]]]) & (part == part[loop[0]])
+    keep = sparse.diags((inside | ~off_loop).astype(np.float64))
+    hops, _, nearest = csgraph.dijkstra(keep @ graph @ keep, directed=False, indices=loop, min_only=True,
+                                        return_predecessors=True)
+    if not depth:
+        return inside, hops, nearest
+    # Depth by the heat method: shortest edge paths overestimate it by up to 41% depending on the
+    # triangulation, so two meshes of one surface would disagree.
+    import potpourri3d
+
+    heat = potpourri3d.MeshHeatMethodDistanceSolver(mesh.vertices, mesh.triangles).compute_distance_multisource(
+        loop.tolist())
+    return inside, np.where(np.isfinite(hops), heat, np.inf), nearest
+
+
+def opening_sides(mesh: Mesh, control_vertices, layout: str) -> np.ndarray:
+    """Which side of each opening of the layout every vertex lies on, ``(V,) int64``.
+
+    0: outside every opening (the face); ``2k + 1`` and ``2k + 2``: inside opening ``k`` of
+    :data:`OPENINGS` (cut its loop out, the parts that hold no other control point), nearer the loop's
+    first contour (the upper lip or lid) or its second (the lower); -1: on a loop itself, which borders
+    both sides. Motion must not be carried from one side to another: the two lips, and the lips and the
+    skin around them, move apart.
+    """
+    ids = np.asarray(control_vertices, dtype=np.int64)
+    curves = contour_paths(mesh, ids, layout)
+    side = np.zeros(len(mesh.vertices), dtype=np.int64)
+    for k, contours in enumerate(OPENINGS[layout]):
+        on_loop = sorted({c for contour in contours for c in LAYOUTS[layout][contour]})
+        loop, param, _ = _loop(mesh, curves, contours)
+        inside, _, nearest = _inside(mesh, loop, ids[np.setdiff1d(np.arange(len(ids)), on_loop)], depth=False)
+        first = sum(len(curves[c]) for c in contours[:1])  # stretches on the loop's first contour
+        at = np.zeros(len(mesh.vertices))
+        at[loop] = param
+        lower = at[np.where(nearest >= 0, nearest, 0)] >= first
+        side[inside] = np.where(lower[inside], 2 * k + 2, 2 * k + 1)
+        side[loop] = -1
+    return side
+
+
+def _periodic_mean(param: np.ndarray, values: np.ndarray):
+    """``values`` averaged over equal parameters, sorted by parameter (for :func:`numpy.interp` with a period)."""
+    keys, which = np.unique(param, return_inverse=True)
+    total = np.zeros((len(keys),) + values.shape[1:])
+    np.add.at(total, which, values)
+    return keys, total / np.bincount(which, minlength=len(keys)).reshape((-1,) + (1,) * (values.ndim - 1))
+
+
+def opening_rims(source: Mesh, target: Mesh, source_ids, target_ids, layout: str,
+                 *, target_vertices=None) -> tuple[np.ndarray, np.ndarray]:
+    """Where the target's skin ends inside the eyes (the openings in :data:`RIMMED`), and the same place
+    on the source.
+
+    A target cut at its eyes (the face without its sockets) ends in an open rim a little inside the lid
+    lines, while a source with its sockets runs on into them: nothing pins the source there, and a
+    registration left free slides the lids' margins (eyeBlink then moves the wrong skin). The rim is
+    placed by depth: each rim vertex of the target lies some distance along the surface (heat method)
+    inside the loop the lids close along; the source's rim is where its surface inside the same loop
+    reaches that distance at the same place along the loop, scaled by the ratio of the loops' lengths.
+    A source cut like the target keeps its own rim.
+
+    Parameters
+    ----------
+    source, target : Mesh
+    source_ids, target_ids : (K,) int64
+        The control points, in the layout's order.
+    layout : {"ibug68", "thesis16"}
+    target_vertices : (Vt, 3) float64, optional
+        Target positions to read the landing points from (default: the target's own).
+
+    Returns
+    -------
+    vertices : (N,) int64
+        Source vertices on the rims.
+    points : (N, 3) float64
+        Where each lands on the target's rim: the rim's point at the same place along the loop.
+    """
+    tv = target.vertices if target_vertices is None else target_vertices
+    ids = (np.asarray(source_ids, dtype=np.int64), np.asarray(target_ids, dtype=np.int64))
+    curves = (contour_paths(source, ids[0], layout), contour_paths(target, ids[1], layout))
+    borders = []
+    for mesh in (source, target):
+        border = np.zeros(len(mesh.vertices), dtype=bool)
+        border[open_edges(mesh.triangles).ravel()] = True
+        borders.append(border)
+    found_v, found_p = [], []
+    for contours in RIMMED[layout]:
+        on_loop = sorted({k for c in contours for k in LAYOUTS[layout][c]})
+        other = np.setdiff1d(np.arange(len(ids[0])), on_loop)
+        sides = []
+        for mesh, k, border in zip((source, target), (0, 1), borders, strict=True):
+            loop, param, period = _loop(mesh, curves[k], contours)
+            inside, depth, nearest = _inside(mesh, loop, ids[k][other])
+            at = np.full(len(mesh.vertices), np.nan)
+            at[loop] = param
+            length = float(np.linalg.norm(np.diff(mesh.vertices[np.r_[loop, loop[:1]]], axis=0), axis=1).sum())
+            sides.append((loop, inside, depth, at[np.where(nearest >= 0, nearest, loop[0])], length, border))
+        (_, s_in, s_depth, s_at, s_len, s_border), (_, t_in, t_depth, t_at, t_len, t_border) = sides
+        t_rim = np.flatnonzero(t_in & t_border & np.isfinite(t_depth))
+        if not len(t_rim) or not s_in.any():
+            continue
+        keys, rim_points = _periodic_mean(t_at[t_rim], tv[t_rim])
+        _, rim_depth = _periodic_mean(t_at[t_rim], t_depth[t_rim])
+        s_rim = np.flatnonzero(s_in & s_border & np.isfinite(s_depth))
+        if not len(s_rim):  # else a source cut like the target: its own rim
+            level = np.interp(s_at, keys, rim_depth, period=period) * (s_len / t_len)
+            excess = np.where(s_in & np.isfinite(s_depth), s_depth - level, -np.inf)
+            deeper = excess >= 0
+            e = source.edges
+            a, b = e[deeper[e[:, 0]] != deeper[e[:, 1]]].T
+            s_rim = np.unique(np.where(np.abs(excess[a]) <= np.abs(excess[b]), a, b))  # the end nearer the level
+        landing = np.stack([np.interp(s_at[s_rim], keys, rim_points[:, c], period=period) for c in range(3)], axis=1)
+        found_v.append(s_rim)
+        found_p.append(landing)
+    if not found_v:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
+    return np.concatenate(found_v), np.concatenate(found_p)

@@ -5,7 +5,10 @@ spline, exact for any affine difference in pose and size), then registered onto 
 by optimal-step non-rigid ICP (:func:`~faceanim.geometry.nicp.register_surface`), with the control
 points as landmarks and, for a known control-point layout, the face's contours (lip lines, eyelids,
 brows, nose) matched as curves (:mod:`~faceanim.retarget.contours`) as further landmarks at half
-weight.
+weight, and the eyes' rims (where a target without eye sockets ends inside the lids,
+:func:`~faceanim.retarget.contours.opening_rims`) likewise. The registration also records which side of
+the face's openings each source vertex lies on (:func:`~faceanim.retarget.contours.opening_sides`), so
+that :class:`~faceanim.retarget.DenseTransfer` never carries motion across the lips or lids.
 
 A registration takes seconds to tens of seconds (26,719 vertices), so it is kept in an in-process
 LRU cache of the last :data:`CACHE_SIZE` registrations, keyed by SHA-1 digests of both meshes'
@@ -26,12 +29,13 @@ from ..geometry.mesh import Mesh
 from ..geometry.nicp import NicpOptions, register_surface
 from ..geometry.rbf import RbfWarp
 from ..geometry.topology import component_labels
-from .contours import LANDMARK_WEIGHTS, LAYOUT_SIZES, LAYOUTS, matched_contours
+from .contours import LANDMARK_WEIGHTS, LAYOUT_SIZES, LAYOUTS, matched_contours, opening_rims, opening_sides
 
-__all__ = ["FaceRegistration", "register_faces", "CACHE_SIZE", "CONTOUR_WEIGHT"]
+__all__ = ["FaceRegistration", "register_faces", "CACHE_SIZE", "CONTOUR_WEIGHT", "RIM_WEIGHT"]
 
 CACHE_SIZE = 8
 CONTOUR_WEIGHT = 0.5  # landmark weight of a contour point, relative to a control point
+RIM_WEIGHT = 0.5  # landmark weight of a point on an opening's rim (see contours.opening_rims)
 _cache: OrderedDict = OrderedDict()
 
 
@@ -39,13 +43,18 @@ _cache: OrderedDict = OrderedDict()
 class FaceRegistration:
     """``mesh``: the source's registered part (its own triangles, target units); ``source_vertices (N,)``:
     the source vertex id of each of its vertices; ``fit`` and ``landmark_error`` as in
-    :class:`~faceanim.geometry.nicp.Registration`; ``contour_points``: how many contour points held it."""
+    :class:`~faceanim.geometry.nicp.Registration`; ``contour_points``: how many contour points held it;
+    ``layout``: the control points' layout (None when none was matched) and ``sides (N,)``: which side of
+    the layout's openings each vertex lies on (:func:`~faceanim.retarget.contours.opening_sides`; all 0
+    without a layout)."""
 
     mesh: Mesh
     source_vertices: np.ndarray
     fit: float
     landmark_error: float
     contour_points: int
+    layout: str | None = None
+    sides: np.ndarray | None = None
 
 
 def _digest(*arrays) -> str:
@@ -122,16 +131,19 @@ def _register(source, target, source_ids, target_ids, contours, options) -> Face
         for k, w in LANDMARK_WEIGHTS.get(contours, {}).items():
             weights[k] = w
         on_curve, curve_points = matched_contours(part, target, local, target_ids, contours)
-        landmarks = np.r_[landmarks, on_curve]
-        points = np.r_[points, curve_points]
-        weights = np.r_[weights, np.full(len(on_curve), CONTOUR_WEIGHT)]
+        on_rim, rim_points = opening_rims(part, target, local, target_ids, contours)
+        fresh = ~np.isin(on_rim, np.r_[landmarks, on_curve])
+        landmarks = np.r_[landmarks, on_curve, on_rim[fresh]]
+        points = np.r_[points, curve_points, rim_points[fresh]]
+        weights = np.r_[weights, np.full(len(on_curve), CONTOUR_WEIGHT), np.full(fresh.sum(), RIM_WEIGHT)]
     src_pts = part.vertices[local]
     warp = RbfWarp(src_pts, target.vertices[target_ids] - src_pts, kernel="thin_plate")
     start = part.vertices + warp(part.vertices)
     reg = register_surface(part, target, source_landmarks=landmarks, target_points=points,
                            landmark_weights=weights, initial=start, options=options)
+    sides = np.zeros(len(kept), dtype=np.int64) if contours is None else opening_sides(part, local, contours)
     return FaceRegistration(Mesh(reg.vertices, part.triangles), kept, reg.fit, reg.landmark_error,
-                            len(landmarks) - len(local))
+                            len(landmarks) - len(local), contours, sides)
 
 
 def clear_cache() -> None:

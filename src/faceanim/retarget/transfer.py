@@ -29,11 +29,12 @@ from scipy import sparse
 from ..geometry.fastop import Float32Operator
 from ..geometry.mesh import Mesh
 from ..geometry.nicp import NicpOptions
-from ..geometry.project import project_points
+from ..geometry.project import Projection, project_points
 from ..geometry.rbf import RbfWarp, apply_operator
 from ..geometry.surface import BiharmonicInterpolation, SurfaceRbf
 from ..geometry.topology import component_labels
 from ..validation import as_array, as_index_array
+from .contours import opening_sides
 from .correspondence import register_faces
 
 __all__ = ["ControlPairs", "SparseTransfer", "DenseTransfer", "transfer_expression", "METHODS", "METRICS"]
@@ -178,8 +179,12 @@ class DenseTransfer:
             warped, columns = Mesh(source.vertices + warp(source.vertices), source.triangles[used]), None
             self.registration = None
         _, moving = _moving_part(target, pairs.target)
-        self.projection = project_points(warped, target.vertices[moving], normals=target.vertex_normals[moving],
-                                         max_angle=max_angle)
+        if register and self.registration.layout is not None:
+            sides = (self.registration.sides, opening_sides(target, pairs.target, self.registration.layout)[moving])
+        else:
+            sides = None
+        self.projection = _project_by_side(warped, target.vertices[moving], target.vertex_normals[moving],
+                                           max_angle, sides)
         weights = self.projection.matrix(len(warped.vertices))
         if columns is not None:  # the registered part's vertices back to the source's own ids
             weights = weights @ sparse.csr_matrix((np.ones(len(columns)), (np.arange(len(columns)), columns)),
@@ -197,6 +202,32 @@ class DenseTransfer:
         if d.ndim == 3 and d.shape[1:] == (Vs, 3):
             return np.stack([self.matrix @ frame for frame in d])
         raise ValueError(f"source_displacements must have shape ({Vs}, 3) or (T, {Vs}, 3), got {d.shape}")
+
+
+def _project_by_side(mesh: Mesh, points, normals, max_angle: float, sides) -> Projection:
+    """Project ``points`` onto ``mesh``; with ``sides`` (the mesh's vertices' and the points' sides of the
+    face's openings, :func:`~faceanim.retarget.contours.opening_sides`), each point only onto triangles on
+    its own side (or touching the opening's loop): a point on the lower lip never takes the upper lip's
+    motion, nor the skin's, whatever the registration left."""
+    if sides is None:
+        return project_points(mesh, points, normals=normals, max_angle=max_angle)
+    mesh_side, point_side = sides
+    corner_side = mesh_side[mesh.triangles]
+    fields = [np.zeros((len(points), 3)), np.zeros(len(points), dtype=np.int64), np.zeros((len(points), 3)),
+              np.zeros(len(points)), np.zeros((len(points), 3), dtype=np.int64)]
+    for side in np.unique(point_side):
+        rows = np.flatnonzero(point_side == side)
+        allowed = np.ones(len(mesh.triangles), dtype=bool) if side == -1 else \
+            ((corner_side == side) | (corner_side == -1)).all(axis=1)
+        if not allowed.any():
+            allowed[:] = True
+        chosen = np.flatnonzero(allowed)
+        part = project_points(Mesh(mesh.vertices, mesh.triangles[chosen]), points[rows], normals=normals[rows],
+                              max_angle=max_angle)
+        for field, value in zip(fields, (part.points, chosen[part.triangles], part.barycentric, part.distances,
+                                         part.corner_vertices), strict=True):
+            field[rows] = value
+    return Projection(*fields)
 
 
 def _moving_part(mesh: Mesh, vertex_ids: np.ndarray) -> tuple[Mesh, np.ndarray]:

@@ -1,0 +1,83 @@
+"""The face's openings (mouth, eyes) on ICT-FaceKit's head, whose parts are known by vertex range."""
+
+import numpy as np
+import pytest
+from conftest import shared
+
+from faceanim.retarget.contours import OPENINGS, opening_rims, opening_sides
+from faceanim.retarget.correspondence import _part_with
+
+MOUTH_SOCKET = (11248, 13294)   # ICT-FaceKit's vertex ranges (its README)
+EYE_SOCKETS = ((13678, 14062), (13294, 13678))  # right, left: the order of OPENINGS["ibug68"][1:]
+FACE = 9409
+
+
+@pytest.fixture(scope="module")
+def ict_head():
+    shared("ict_facekit", "ict_deltas_full.npz")
+    from ict_scenario import load_ict, remade_face
+
+    model = load_ict()
+    head = model.mesh(model.neutral)
+    part, kept, local = _part_with(head, model.landmarks)  # the skin with its sockets, as the registration sees it
+    face = remade_face(model, model.neutral, np.random.default_rng(0))  # the face region alone, re-made
+    return dict(model=model, part=part, kept=kept, local=local, face=face)
+
+
+def _rim(model, lo, hi):
+    """ICT face vertices that share a triangle with the socket ``[lo, hi)``: where the face region ends."""
+    t = model.mesh(model.neutral).triangles
+    mixed = t[(t < FACE).any(axis=1) & ((t >= lo) & (t < hi)).any(axis=1)]
+    return np.unique(mixed[mixed < FACE])
+
+
+def test_sides_of_the_openings_on_a_head_with_its_sockets(ict_head):
+    h = ict_head
+    side = np.full(len(h["model"].neutral), -9)
+    side[h["kept"]] = opening_sides(h["part"], h["local"], "ibug68")
+    assert len(OPENINGS["ibug68"]) == 3
+    for k, (lo, hi) in enumerate((MOUTH_SOCKET, *EYE_SOCKETS)):
+        inside = np.isin(side[lo:hi], (2 * k + 1, 2 * k + 2))
+        assert inside.mean() > 0.99                     # the socket lies inside its opening
+        assert {2 * k + 1, 2 * k + 2} <= set(side[lo:hi].tolist())  # and takes both lips' (lids') sides
+    lm = h["model"].landmarks
+    assert (side[lm[[48, 51, 54, 57, 33, 8, 19]]] == 0).all()  # outer lips, nose, chin, brow: outside
+    assert (side[lm[60:68]] == -1).all()                # the inner lip points are on the mouth's loop
+    face = side[:FACE]
+    assert (face > 0).mean() < 0.1                      # the face itself is outside, but for the inner lips and lids
+
+
+def test_a_face_without_sockets_has_the_sides_of_the_head_it_was_cut_from(ict_head):
+    """The face region alone (re-triangulated, subdivided, shuffled) ends at open rims inside the lips and
+    lids; its vertices take the sides of the ICT vertices they are made of."""
+    h = ict_head
+    face = h["face"]
+    tids = face.index_of[h["model"].landmarks]
+    tside = opening_sides(face.mesh, tids, "ibug68")
+    truth = np.full(len(h["model"].neutral), -9)
+    truth[h["kept"]] = opening_sides(h["part"], h["local"], "ibug68")
+    # the side of each target vertex is the side of the ICT vertices it is made of (exact: same surface)
+    made_of = face.from_ict.tocoo()
+    fits = (truth[made_of.col] == tside[made_of.row]) | (truth[made_of.col] == -1) | (tside[made_of.row] == -1)
+    agree = np.zeros(len(tside), dtype=bool)
+    agree[made_of.row[fits]] = True
+    assert agree.mean() > 0.995
+    assert set(tside.tolist()) == set(range(-1, 7))
+
+
+def test_rims_of_the_same_face_lie_on_its_own_border(ict_head):
+    """The full head against its own face region: the rim found inside each eye on the head is the face
+    region's border there (where its skin meets the eye sockets), and lands on its own place."""
+    h = ict_head
+    face = h["face"]
+    model = h["model"]
+    vertices, points = opening_rims(h["part"], face.mesh, h["local"], face.index_of[model.landmarks],
+                                            "ibug68")
+    ict = h["kept"][vertices]
+    rim = np.concatenate([_rim(model, lo, hi) for lo, hi in EYE_SOCKETS])
+    to_rim = np.linalg.norm(model.neutral[ict][:, None] - model.neutral[rim][None], axis=2).min(axis=1)
+    spacing = np.linalg.norm(model.neutral[rim][:, None] - model.neutral[rim][None], axis=2)
+    np.fill_diagonal(spacing, np.inf)
+    edge = np.median(spacing.min(axis=1))
+    assert np.isin(ict, rim).mean() > 0.6 and to_rim.max() < 2 * edge  # on the rim, or a ring from it
+    assert np.median(np.linalg.norm(points - model.neutral[ict], axis=1)) < 0.01  # cm: lands on its own place
