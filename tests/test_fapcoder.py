@@ -367,6 +367,20 @@ def test_packets_cost_a_few_bytes_and_do_not_change_the_values():
     assert sizes[250] < sizes[5] < sizes[1] < sizes[250] + 250 * 8  # at most ~8 bytes a packet
 
 
+def test_the_decoder_holds_a_packet_not_the_stream():
+    """Memory does not grow with the stream: fed 64 bytes at a time, the decoder never holds more than
+    the bytes of one packet and one piece, however long the stream (3,000 frames, 120 packets)."""
+    stream = synthetic(T=3000, seed=6, holes=0.1)
+    data = encode_faps(stream, quant=1.0, packet=25)
+    decoder, most, frames = FbaDecoder(), 0, 0
+    for at in range(0, len(data), 64):
+        piece = decoder.feed(data[at:at + 64])
+        most = max(most, len(decoder._buffer))
+        frames += 0 if piece is None else len(piece)
+    decoder.close()
+    assert frames == 3000 and most < len(data) / 120 * 3 + 64
+
+
 def test_a_version_1_file_still_reads_whole_and_streamed(tmp_path):
     """84 bytes written by the version 1 coder (commit 2b92feb): 12 frames of FAPs 3 and 51."""
     data = bytes.fromhex(
