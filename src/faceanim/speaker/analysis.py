@@ -75,9 +75,12 @@ DEFAULT_COLOUR_PRIOR = 0.0
 # first steps; the cost each edge of the simplex raises, as a share of the start's.
 _DIFFERENCE = 0.25
 # The walls beyond the model's parameter ranges (CloneAnalyser._beyond): their weight per squared standard
-# deviation and how far beyond the build frames' range (in standard deviations) they begin.
+# deviation and how far beyond the build frames' range (in standard deviations) they begin. On the build
+# frames of the speech clips (tuning) walls lifted the lip opening's correlation with MediaPipe from 0.38
+# to 0.75 (speech_woman; speech_man's width 0.66 to 0.78); beginning 2 std out rather than 1 changed
+# those by under 0.03 and pulls less on postures beyond the build frames' range.
 DEFAULT_WALLS = 0.05
-_RANGE_MARGIN = 1.0
+_RANGE_MARGIN = 2.0
 # The clone's shift in the image (shift=True): the simplex's first step and where its wall begins, box pixels.
 _STEP_SHIFT = 0.5
 _MAX_SHIFT = 4.0
@@ -286,7 +289,7 @@ class CloneAnalyser:
         Also analyse a rigid correction of the head pose (6 more parameters).
     raster : {None, "gl", "numpy"}
         The lip-probability renderer (:mod:`.lipraster`); None (default): GL where a context can be
-        made (faster in ``benchmarks/clone_tracking.py``: 17 against 12 frames/s), else numpy.
+        made (faster in ``benchmarks/clone_tracking.py``), else numpy.
     field : {None, "top", "bottom"}
         The frames are one field of interlaced footage: rows 0, 2, ... (top) or 1, 3, ... (bottom) of
         the frames the camera was fitted on.
@@ -317,6 +320,10 @@ class CloneAnalyser:
         The box's width in its own pixels (default 64).
     xatol, fatol : float
         The simplex's stopping tolerances (parameters, difference); the cap usually comes first.
+    shift : bool
+        Also analyse a shift of the clone in the image (2 more parameters, box pixels; walls beyond 4):
+        room for the head pose's and camera's misregistration. Off by default: on the build frames it
+        helped one speaker's lip width and hurt the other's.
     """
 
     def __init__(self, model: SpeakerModel, appearance, *, width: int, height: int, mouth_width: float,

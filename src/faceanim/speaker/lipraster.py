@@ -1,8 +1,10 @@
-"""The analysis mesh's lip-probability image: a few textured triangles drawn over a small box.
+"""The analysis's image of the clone: textured triangles drawn over a small box (lip probability, or
+colour with textures of several channels).
 
-Analysis by synthesis renders the clone's lips (a mesh of at most 50 triangles) hundreds of times a
-frame, into a box of a few thousand pixels, with a texture that is a per-pixel mix of the key
-postures' lip-probability textures. Two implementations draw exactly that:
+Analysis by synthesis renders the clone's mouth (the synthesis mesh around it, a few hundred
+triangles, or a reduced mesh of at most 50) hundreds of times a frame, into a box of a few thousand
+pixels, with a texture that is a per-pixel mix of the key postures' textures (their colours, or their
+lip probabilities). Two implementations draw exactly that:
 
 * :class:`NumpyLipRaster`: every triangle's pixels found at once (each triangle's bounding box
   expanded into candidate pixels, kept where the barycentric coordinates are all >= 0), the texture
@@ -10,7 +12,8 @@ postures' lip-probability textures. Two implementations draw exactly that:
 * :class:`GlLipRaster` (the tracker's default where a context can be made): moderngl on EGL (Mesa's
   software rasteriser on a CPU, the GPU where there is one), one float framebuffer, the textures in
   one float texture array mixed in the fragment shader. It measured faster on the speech clips
-  (14-17 against 11-14 frames/s, ``benchmarks/clone_tracking.py``).
+  (``benchmarks/clone_tracking.py``: 5.9-6.3 against 3.4-3.7 frames/s for the colour comparison on
+  a loaded 2-core machine).
 
 Both take vertices in box pixels (x right, y down, pixel ``(i, j)`` covering ``[j, j+1) x [i, i+1)``,
 sampled at its centre ``(j + 0.5, i + 0.5)``), texture coordinates ``uv`` in ``[0, 1]`` (``u`` along
