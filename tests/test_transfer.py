@@ -115,18 +115,17 @@ def test_ict_clone_with_68_landmarks_meets_its_target(ict_case):
     assert errors[180.0][3] > 2 * errors[60.0][3]  # lip roll: the normal test keeps the lips apart
 
 
-def test_ict_clone_takes_no_motion_across_the_lips_or_lids(ict_case):
-    """No target vertex takes motion from the other side of the mouth or an eye opening: the other lip,
-    the skin outside, or (from the inner lip) the socket's far side, judged by the ICT vertices the
-    target vertex is made of (exact truth)."""
-    from faceanim.retarget.contours import opening_sides
+def test_ict_clone_takes_no_motion_across_the_lids(ict_case):
+    """No target vertex takes motion from the other side of an eye opening (the other lid, the skin
+    outside, the socket), judged by the ICT vertices the target vertex is made of (exact truth)."""
+    from faceanim.retarget.contours import SIDED, opening_sides
     from faceanim.retarget.correspondence import _part_with
 
     c = ict_case
     dense = DenseTransfer(c["source"], c["target"].mesh, ControlPairs(c["ids"], c["tids"]))  # registration cached
     part, kept, local = _part_with(c["source"], c["ids"])
     side = np.zeros(len(c["source"].vertices), dtype=np.int64)
-    side[kept] = opening_sides(part, local, "ibug68")
+    side[kept] = opening_sides(part, local, "ibug68", openings=SIDED["ibug68"])
     made_of = c["target"].from_ict
     truth = side[made_of.indices[made_of.indptr[:-1]]]  # the side of each target vertex's first ICT vertex
     weights = dense.matrix.tocoo()

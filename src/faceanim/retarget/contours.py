@@ -21,8 +21,8 @@ from ..geometry.surface import edge_graph
 from ..geometry.topology import component_labels, open_edges
 from ..mpeg4.multipie import THESIS_16
 
-__all__ = ["LAYOUTS", "LAYOUT_SIZES", "LANDMARK_WEIGHTS", "OPENINGS", "RIMMED", "contour_paths", "matched_contours",
-           "opening_rims", "opening_sides"]
+__all__ = ["LAYOUTS", "LAYOUT_SIZES", "LANDMARK_WEIGHTS", "OPENINGS", "RIMMED", "SIDED", "contour_paths",
+           "matched_contours", "opening_rims", "opening_sides"]
 
 # The jaw line (points 0-16) is left out: it is a silhouette, not a line on the skin, and the paths
 # through it differ between faces by up to 0.7 cm on ICT-FaceKit's identities.
@@ -139,6 +139,11 @@ OPENINGS: dict[str, tuple] = {
 #: tuning pairs the true rim lay 0.5 to 1.2 times as deep on the source as on the target, against loops
 #: of about equal length), so a mouth rim placed by depth pulls the inner lip to the wrong place.
 RIMMED: dict[str, tuple] = {"ibug68": ((4, 5), (6, 7)), "thesis16": ()}
+#: The openings across which :class:`~faceanim.retarget.DenseTransfer` carries no motion: the eyes'. Kept
+#: to its own side of the mouth as well, a target vertex on the inner lip lands farther from where it
+#: belongs where the registration left the source's inner lip off the target's (on ICT-FaceKit's tuning
+#: pairs: seed 7 median 0.080 -> 0.087 and worst 0.157 -> 0.245, seed 11 median 0.097 -> 0.109).
+SIDED: dict[str, tuple] = {"ibug68": ((4, 5), (6, 7)), "thesis16": ()}
 
 
 def _loop(mesh: Mesh, curves, contours) -> tuple[np.ndarray, np.ndarray, int]:
@@ -179,19 +184,19 @@ def _inside(mesh: Mesh, loop: np.ndarray, outside: np.ndarray, *, depth: bool = 
     return inside, np.where(np.isfinite(hops), heat, np.inf), nearest
 
 
-def opening_sides(mesh: Mesh, control_vertices, layout: str) -> np.ndarray:
+def opening_sides(mesh: Mesh, control_vertices, layout: str, *, openings=None) -> np.ndarray:
     """Which side of each opening of the layout every vertex lies on, ``(V,) int64``.
 
-    0: outside every opening (the face); ``2k + 1`` and ``2k + 2``: inside opening ``k`` of
-    :data:`OPENINGS` (cut its loop out, the parts that hold no other control point), nearer the loop's
-    first contour (the upper lip or lid) or its second (the lower); -1: on a loop itself, which borders
-    both sides. Motion must not be carried from one side to another: the two lips, and the lips and the
-    skin around them, move apart.
+    0: outside every opening (the face); ``2k + 1`` and ``2k + 2``: inside opening ``k`` of ``openings``
+    (default: all the layout's :data:`OPENINGS`; cut its loop out, the parts that hold no other control
+    point), nearer the loop's first contour (the upper lip or lid) or its second (the lower); -1: on a
+    loop itself, which borders both sides. The two lips (lids), and they and the skin around them, move
+    apart.
     """
     ids = np.asarray(control_vertices, dtype=np.int64)
     curves = contour_paths(mesh, ids, layout)
     side = np.zeros(len(mesh.vertices), dtype=np.int64)
-    for k, contours in enumerate(OPENINGS[layout]):
+    for k, contours in enumerate(OPENINGS[layout] if openings is None else openings):
         on_loop = sorted({c for contour in contours for c in LAYOUTS[layout][contour]})
         loop, param, _ = _loop(mesh, curves, contours)
         inside, _, nearest = _inside(mesh, loop, ids[np.setdiff1d(np.arange(len(ids)), on_loop)], depth=False)

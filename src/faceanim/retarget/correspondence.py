@@ -7,8 +7,9 @@ points as landmarks and, for a known control-point layout, the face's contours (
 brows, nose) matched as curves (:mod:`~faceanim.retarget.contours`) as further landmarks at half
 weight, and the eyes' rims (where a target without eye sockets ends inside the lids,
 :func:`~faceanim.retarget.contours.opening_rims`) likewise. The registration also records which side of
-the face's openings each source vertex lies on (:func:`~faceanim.retarget.contours.opening_sides`), so
-that :class:`~faceanim.retarget.DenseTransfer` never carries motion across the lips or lids.
+the eye openings each source vertex lies on (:func:`~faceanim.retarget.contours.opening_sides`,
+:data:`~faceanim.retarget.contours.SIDED`), so that :class:`~faceanim.retarget.DenseTransfer` never
+carries motion across the lids.
 
 A registration takes seconds to tens of seconds (26,719 vertices), so it is kept in an in-process
 LRU cache of the last :data:`CACHE_SIZE` registrations, keyed by SHA-1 digests of both meshes'
@@ -29,7 +30,7 @@ from ..geometry.mesh import Mesh
 from ..geometry.nicp import NicpOptions, register_surface
 from ..geometry.rbf import RbfWarp
 from ..geometry.topology import component_labels
-from .contours import LANDMARK_WEIGHTS, LAYOUT_SIZES, LAYOUTS, matched_contours, opening_rims, opening_sides
+from .contours import LANDMARK_WEIGHTS, LAYOUT_SIZES, LAYOUTS, SIDED, matched_contours, opening_rims, opening_sides
 
 __all__ = ["FaceRegistration", "register_faces", "CACHE_SIZE", "CONTOUR_WEIGHT", "RIM_WEIGHT"]
 
@@ -45,8 +46,8 @@ class FaceRegistration:
     the source vertex id of each of its vertices; ``fit`` and ``landmark_error`` as in
     :class:`~faceanim.geometry.nicp.Registration`; ``contour_points``: how many contour points held it;
     ``layout``: the control points' layout (None when none was matched) and ``sides (N,)``: which side of
-    the layout's openings each vertex lies on (:func:`~faceanim.retarget.contours.opening_sides`; all 0
-    without a layout)."""
+    the layout's :data:`~faceanim.retarget.contours.SIDED` openings each vertex lies on
+    (:func:`~faceanim.retarget.contours.opening_sides`; all 0 without a layout)."""
 
     mesh: Mesh
     source_vertices: np.ndarray
@@ -141,7 +142,8 @@ def _register(source, target, source_ids, target_ids, contours, options) -> Face
     start = part.vertices + warp(part.vertices)
     reg = register_surface(part, target, source_landmarks=landmarks, target_points=points,
                            landmark_weights=weights, initial=start, options=options)
-    sides = np.zeros(len(kept), dtype=np.int64) if contours is None else opening_sides(part, local, contours)
+    sides = np.zeros(len(kept), dtype=np.int64) if contours is None else \
+        opening_sides(part, local, contours, openings=SIDED[contours])
     return FaceRegistration(Mesh(reg.vertices, part.triangles), kept, reg.fit, reg.landmark_error,
                             len(landmarks) - len(local), contours, sides)
 

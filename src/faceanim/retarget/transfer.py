@@ -34,7 +34,7 @@ from ..geometry.rbf import RbfWarp, apply_operator
 from ..geometry.surface import BiharmonicInterpolation, SurfaceRbf
 from ..geometry.topology import component_labels
 from ..validation import as_array, as_index_array
-from .contours import opening_sides
+from .contours import SIDED, opening_sides
 from .correspondence import register_faces
 
 __all__ = ["ControlPairs", "SparseTransfer", "DenseTransfer", "transfer_expression", "METHODS", "METRICS"]
@@ -179,8 +179,10 @@ class DenseTransfer:
             warped, columns = Mesh(source.vertices + warp(source.vertices), source.triangles[used]), None
             self.registration = None
         _, moving = _moving_part(target, pairs.target)
-        if register and self.registration.layout is not None:
-            sides = (self.registration.sides, opening_sides(target, pairs.target, self.registration.layout)[moving])
+        layout = self.registration.layout if register else None
+        if layout is not None and SIDED[layout]:
+            sides = (self.registration.sides,
+                     opening_sides(target, pairs.target, layout, openings=SIDED[layout])[moving])
         else:
             sides = None
         self.projection = _project_by_side(warped, target.vertices[moving], target.vertex_normals[moving],
@@ -207,8 +209,8 @@ class DenseTransfer:
 def _project_by_side(mesh: Mesh, points, normals, max_angle: float, sides) -> Projection:
     """Project ``points`` onto ``mesh``; with ``sides`` (the mesh's vertices' and the points' sides of the
     face's openings, :func:`~faceanim.retarget.contours.opening_sides`), each point only onto triangles on
-    its own side (or touching the opening's loop): a point on the lower lip never takes the upper lip's
-    motion, nor the skin's, whatever the registration left."""
+    its own side (or touching the opening's loop): a point on the lower lid never takes the upper lid's
+    motion, nor the socket's, whatever the registration left."""
     if sides is None:
         return project_points(mesh, points, normals=normals, max_angle=max_angle)
     mesh_side, point_side = sides
