@@ -26,7 +26,7 @@ from .mesh import Mesh
 from .project import project_points
 from .topology import open_edges
 
-__all__ = ["turned_over", "turned_triangles", "rigid_residual", "edge_stretch", "signed_distance",
+__all__ = ["turned_over", "turned_triangles", "rigid_residual", "edge_stretch", "signed_distance", "signed_offsets",
            "penetration_depth"]
 
 _CHUNK_VALUES = 4_000_000  # floats per working array (32 MB): frames are processed this many values at a time
@@ -207,12 +207,18 @@ def signed_distance(points, vertices, triangles) -> np.ndarray:
     array([ 0.2, -0.3])
     """
     points = as_array(points, "points", shape=("N", 3))
-    surface = Mesh(vertices, triangles)
+    return signed_offsets(points, Mesh(vertices, triangles))[0]
+
+
+def signed_offsets(points: np.ndarray, surface: Mesh) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`signed_distance` of ``points (N, 3)`` to ``surface``, and the outward unit normal at
+    each closest point ``(N, 3)`` (the direction that takes a point behind the surface out of it)."""
     found = project_points(surface, points)
     normal = found.interpolate(surface.vertex_normals)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
     side = np.einsum("nd,nd->n", points - found.points, normal)
     behind = (side < 0) & ~_on_rim(surface, found)
-    return np.where(behind, -found.distances, found.distances)
+    return np.where(behind, -found.distances, found.distances), normal
 
 
 def _on_rim(surface: Mesh, found) -> np.ndarray:

@@ -3,8 +3,9 @@
 A lip pressed against the teeth in the video, or one whose motion is interpolated a little too far
 back, would pass through them. The teeth sets are rigid (the upper with the skull, the lower turned
 with the jaw), so each frame's lip vertices are taken into a set's own rest frame, measured against
-its surface there (the nearest tooth vertex and its outward normal), and pushed back out by however
-much deeper they went than they sat at rest (a lip resting on the teeth stays where it rests).
+its surface there (the signed distance to the closest point of its triangles, and the outward normal
+there, :func:`~faceanim.geometry.quality.signed_offsets`), and pushed back out to the depth they sat
+at at rest (a lip resting on or in the teeth at rest may stay as deep as it was).
 """
 
 from __future__ import annotations
@@ -14,29 +15,28 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..geometry.mesh import Mesh
+from ..geometry.quality import signed_offsets
+from ..geometry.topology import submesh
 from ..parts import INNER_LIP_POINTS, FaceParts
 from ..target import Target
 
 __all__ = ["TeethContact"]
 
+_PLANES = 4  # nearest tooth vertices whose tangent planes screen a lip vertex before the exact distance
+
 
 @dataclass(frozen=True, eq=False)
 class _RigidSet:
-    """One rigid teeth set: its share of the jaw's turn (0 or 1), its rest vertices and outward normals
-    with a KD-tree over them, and how deep each lip vertex sits behind its surface at rest (>= 0)."""
+    """One rigid teeth set: its share of the jaw's turn (0 or 1), its rest surface with a KD-tree over
+    its vertices, and the deepest each lip vertex may go (its signed distance at rest, at most 0)."""
 
     turn_share: float
+    surface: Mesh
     tree: cKDTree
-    surface: np.ndarray
     normals: np.ndarray
-    at_rest: np.ndarray
-
-    def depth(self, points: np.ndarray):
-        """How far ``points (..., 3)`` (this set's rest frame) lie behind its surface, their distance
-        to it, and the outward normal there."""
-        distance, nearest = self.tree.query(points.reshape(-1, 3))
-        distance, nearest = distance.reshape(points.shape[:-1]), nearest.reshape(points.shape[:-1])
-        return ((self.surface[nearest] - points) * self.normals[nearest]).sum(axis=-1), distance, self.normals[nearest]
+    slack: float
+    allowed: np.ndarray
 
 
 class TeethContact:
@@ -70,14 +70,22 @@ class TeethContact:
         self.lips = np.flatnonzero(near)
         self.lip_rest = rest[skin_ids[self.lips]]
         for role, share in (("upper_teeth", 0.0), ("lower_teeth", 1.0)):
-            ids = np.flatnonzero(parts.mask(role) & (parts.jaw_weight == share))
-            if len(ids) and len(self.lips):
-                unfilled = _RigidSet(share, cKDTree(rest[ids]), rest[ids], target.mesh.vertex_normals[ids], None)
-                at_rest = np.maximum(unfilled.depth(self.lip_rest)[0], 0.0)
-                self.sets.append(_RigidSet(share, unfilled.tree, unfilled.surface, unfilled.normals, at_rest))
+            mask = parts.mask(role) & (parts.jaw_weight == share)
+            surface = submesh(target.mesh, mask)[0] if mask.any() else None
+            if surface is None or not len(surface.triangles) or not len(self.lips):
+                continue
+            allowed = np.minimum(signed_offsets(self.lip_rest, surface)[0], 0.0)
+            edges = surface.vertices[surface.edges]
+            # The nearest vertex's plane misjudges the surface by about an edge's length.
+            slack = float(np.median(np.linalg.norm(edges[:, 0] - edges[:, 1], axis=1)))
+            self.sets.append(_RigidSet(share, surface, cKDTree(surface.vertices), surface.vertex_normals, slack,
+                                       allowed))
 
     def __call__(self, skin_field: np.ndarray, angles) -> None:
+        if not self.sets:
+            return
         h, a = self.parts.hinge, self.parts.axes[0]
+        margin = 0.01 * self.reach
         for teeth in self.sets:
             p = self.lip_rest[None] + skin_field[:, self.lips]  # (T, N, 3)
             turn = teeth.turn_share * np.asarray(angles, dtype=np.float64)[:, None, None]
@@ -85,10 +93,27 @@ class TeethContact:
             r = p - h
             # Into the set's rest frame: undo its turn about the hinge (Rodrigues, by -turn).
             local = h + r * cos - np.cross(a, r) * sin + a * (r @ a)[..., None] * (1 - cos)
-            depth, distance, normal = teeth.depth(local)
-            inside = (depth > teeth.at_rest + 1e-9) & (distance < self.reach)
+            # The exact distance is taken only where the planes of the nearest tooth vertices say a
+            # lip vertex is behind the surface or within about an edge of it.
+            flat = local.reshape(-1, 3)
+            distance, nearest = teeth.tree.query(flat, k=_PLANES, distance_upper_bound=self.reach)
+            near = np.isfinite(distance[:, 0])
+            ahead = np.full(len(flat), np.inf)
+            found = nearest[near]
+            valid = np.isfinite(distance[near])
+            along = ((flat[near][:, None] - teeth.surface.vertices[np.where(valid, found, 0)])
+                     * teeth.normals[np.where(valid, found, 0)]).sum(axis=2)
+            ahead[near] = np.where(valid, along, np.inf).min(axis=1)
+            close = np.flatnonzero(ahead < teeth.slack)
+            if not len(close):
+                continue
+            signed, normal = signed_offsets(local.reshape(-1, 3)[close], teeth.surface)
+            allowed = np.broadcast_to(teeth.allowed, p.shape[:2]).reshape(-1)[close]
+            inside = signed < allowed - 1e-9
             if not inside.any():
                 continue
-            push = np.where(inside, depth - teeth.at_rest + 0.01 * self.reach, 0.0)[..., None] * normal
+            push = np.zeros((p.shape[0] * p.shape[1], 3))
+            push[close[inside]] = (allowed[inside] + margin - signed[inside])[:, None] * normal[inside]
+            push = push.reshape(p.shape)
             # Back to the posed frame: the push turns with the teeth.
             skin_field[:, self.lips] += push * cos + np.cross(a, push) * sin + a * (push @ a)[..., None] * (1 - cos)

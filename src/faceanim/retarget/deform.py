@@ -190,10 +190,11 @@ class PartsDeformer:
         controls = self.controls[self.on_skin]
         residual = displacements[:, self.on_skin] - moved[:, controls]
         skin_field = moved[:, self.skin_ids] + self.spread(residual)
-        self.contact(skin_field, angles)
         if self.relaxer is not None:
             relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field)
             skin_field = relaxed - self.rest[self.skin_ids]
+        # Last, so that nothing after it moves a lip back into the teeth.
+        self.contact(skin_field, angles)
         moved[:, self.skin_ids] = skin_field
         if self._riders is not None:
             riders, corners, bary = self._riders
