@@ -23,19 +23,22 @@ from ..target import Target
 
 __all__ = ["TeethContact"]
 
+_FRONT = 3.0  # lip reaches (0.12 of the mouth's width): how far behind the lips the teeth are kept
 _PLANES = 4  # nearest tooth vertices whose tangent planes screen a lip vertex before the exact distance
 
 
 @dataclass(frozen=True, eq=False)
 class _RigidSet:
     """One rigid teeth set: its share of the jaw's turn (0 or 1), its rest surface with a KD-tree over
-    its vertices, and the deepest each lip vertex may go (its signed distance at rest, at most 0)."""
+    its vertices and their normals, and each lip vertex's signed distance to it at rest and the deepest
+    it may go (that distance, at most 0)."""
 
     turn_share: float
     surface: Mesh
     tree: cKDTree
     normals: np.ndarray
     slack: float
+    at_rest: np.ndarray
     allowed: np.ndarray
 
 
@@ -70,16 +73,18 @@ class TeethContact:
         self.lips = np.flatnonzero(near)
         self.lip_rest = rest[skin_ids[self.lips]]
         for role, share in (("upper_teeth", 0.0), ("lower_teeth", 1.0)):
+            # The teeth a lip can reach: those within a few reaches of the lips at rest (the front).
             mask = parts.mask(role) & (parts.jaw_weight == share)
+            mask &= cKDTree(self.lip_rest).query(rest, distance_upper_bound=_FRONT * self.reach)[0] < np.inf
             surface = submesh(target.mesh, mask)[0] if mask.any() else None
             if surface is None or not len(surface.triangles) or not len(self.lips):
                 continue
-            allowed = np.minimum(signed_offsets(self.lip_rest, surface)[0], 0.0)
+            at_rest = signed_offsets(self.lip_rest, surface)[0]
             edges = surface.vertices[surface.edges]
             # The nearest vertex's plane misjudges the surface by about an edge's length.
             slack = float(np.median(np.linalg.norm(edges[:, 0] - edges[:, 1], axis=1)))
             self.sets.append(_RigidSet(share, surface, cKDTree(surface.vertices), surface.vertex_normals, slack,
-                                       allowed))
+                                       at_rest, np.minimum(at_rest, 0.0)))
 
     def __call__(self, skin_field: np.ndarray, angles) -> None:
         if not self.sets:
@@ -93,9 +98,13 @@ class TeethContact:
             r = p - h
             # Into the set's rest frame: undo its turn about the hinge (Rodrigues, by -turn).
             local = h + r * cos - np.cross(a, r) * sin + a * (r @ a)[..., None] * (1 - cos)
-            # The exact distance is taken only where the planes of the nearest tooth vertices say a
-            # lip vertex is behind the surface or within about an edge of it.
+            # A signed distance changes no faster than the point moves, so a lip vertex that has moved
+            # (in the set's frame) less than it stood clear at rest cannot be in; of the others, the
+            # exact distance is taken only where the planes of the nearest tooth vertices say it is
+            # behind the surface or within about an edge of it.
             flat = local.reshape(-1, 3)
+            moved = np.linalg.norm(local - self.lip_rest, axis=-1)
+            reachable = (moved >= teeth.at_rest - teeth.allowed - 1e-9).reshape(-1)
             distance, nearest = teeth.tree.query(flat, k=_PLANES, distance_upper_bound=self.reach)
             near = np.isfinite(distance[:, 0])
             ahead = np.full(len(flat), np.inf)
@@ -104,7 +113,7 @@ class TeethContact:
             along = ((flat[near][:, None] - teeth.surface.vertices[np.where(valid, found, 0)])
                      * teeth.normals[np.where(valid, found, 0)]).sum(axis=2)
             ahead[near] = np.where(valid, along, np.inf).min(axis=1)
-            close = np.flatnonzero(ahead < teeth.slack)
+            close = np.flatnonzero((ahead < teeth.slack) & reachable)
             if not len(close):
                 continue
             signed, normal = signed_offsets(local.reshape(-1, 3)[close], teeth.surface)
