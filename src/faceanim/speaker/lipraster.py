@@ -72,6 +72,18 @@ def prefilter(textures, footprint: float) -> np.ndarray:
     return np.ascontiguousarray(t, dtype=np.float32)
 
 
+def _reaching(corners: np.ndarray, width: int, height: int) -> np.ndarray:
+    """``(F,) bool``: the triangles at ``corners (F, 3, 2)`` (box pixels) whose bounding box holds a
+    pixel centre of the ``width x height`` box (``(j + 0.5, i + 0.5)``); the others cover none of its
+    pixels, so leaving them out changes no pixel.
+
+    >>> _reaching(np.array([[[0, 0], [4, 0], [0, 4]], [[5, 0], [9, 0], [5, 4]]], float), 4, 4).tolist()
+    [True, False]
+    """
+    low, high = corners.min(axis=1), corners.max(axis=1)
+    return ((high[:, 0] >= 0.5) & (low[:, 0] <= width - 0.5) & (high[:, 1] >= 0.5) & (low[:, 1] <= height - 0.5))
+
+
 class _Raster:
     """What both implementations check and keep: the triangles, the UV, the textures, the box."""
 
@@ -254,16 +266,20 @@ void main() {
 _GL_FRAGMENT = """
 #version 330
 uniform sampler2DArray lips;
-uniform int count;
-uniform float weights[8];
+uniform float weights[{count}];
 in vec2 texcoord;
 out vec4 result;
-void main() {
-    vec4 mixed = vec4(0.0);
-    for (int q = 0; q < count; ++q) mixed += weights[q] * texture(lips, vec3(texcoord, float(q)));
-    result = mixed;
-}
+void main() {{
+    result = {mix};
+}}
 """
+
+
+def _fragment_shader(count: int) -> str:
+    """The fragment shader mixing ``count`` layers of the texture array, the sum written out: llvmpipe
+    ran a loop over a uniform count at half the speed (0.38 against 0.18 ms for the clone's mouth)."""
+    mix = " + ".join(f"weights[{q}] * texture(lips, vec3(texcoord, {q}.0))" for q in range(count))
+    return _GL_FRAGMENT.format(count=count, mix=mix)
 
 
 class GlLipRaster(_Raster):
@@ -280,21 +296,24 @@ class GlLipRaster(_Raster):
             raise ValueError(f"the GL rasteriser mixes at most 8 textures, got {len(self.textures)}")
         self._ctx = egl_context("the GL rasteriser")
         ctx = self._ctx
-        C = self.channels
         self._fbo = ctx.framebuffer(color_attachments=[ctx.renderbuffer((self.width, self.height), 4, dtype="f4")])
-        self._program = ctx.program(vertex_shader=_GL_VERTEX, fragment_shader=_GL_FRAGMENT)
         Q, s, r = self.textures.shape[:3]
-        self._texture = ctx.texture_array((r, s, Q), C, np.ascontiguousarray(self.textures).tobytes(), dtype="f4")
+        self._program = ctx.program(vertex_shader=_GL_VERTEX, fragment_shader=_fragment_shader(Q))
+        # four channels whatever the textures have: llvmpipe reads RGBA float textures faster than RGB
+        padded = np.zeros((Q, s, r, 4), np.float32)
+        padded[..., :self.channels] = self.textures.reshape(Q, s, r, self.channels)
+        self._texture = ctx.texture_array((r, s, Q), 4, padded.tobytes(), dtype="f4")
         self._texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self._texture.repeat_x = self._texture.repeat_y = False
         self._texture.use(0)
         self._program["lips"].value = 0
-        self._program["count"].value = Q
         self._program["size"].value = (float(self.width), float(self.height))
+        self._weights = self._program["weights"]
         self._data = np.zeros((len(self.uv), 4), dtype="f4")
         self._data[:, 2:] = self.uv
         self._vbo = ctx.buffer(reserve=self._data.nbytes)
-        self._ibo = ctx.buffer(self.triangles.astype("i4").tobytes())
+        self._indices = np.ascontiguousarray(self.triangles, dtype="i4")
+        self._ibo = ctx.buffer(reserve=max(self._indices.nbytes, 12))
         self._vao = ctx.vertex_array(self._program, [(self._vbo, "2f 2f", "position", "uv")], self._ibo)
 
     def __call__(self, xy, weights) -> np.ndarray:
@@ -303,14 +322,17 @@ class GlLipRaster(_Raster):
 
         xy, w = self._check(xy, weights)
         self._data[:, :2] = xy
+        seen = _reaching(xy[self.triangles], self.width, self.height)
         with self._ctx:  # this context made current (another one, a clone renderer's, may be open)
-            self._vbo.write(self._data.tobytes())
-            self._program["weights"].value = tuple(float(v) for v in w) + (0.0,) * (8 - len(w))
+            self._vbo.write(self._data)
+            self._ibo.write(self._indices[seen])  # llvmpipe's time goes with the triangles drawn
+            self._weights.write(w.tobytes())
             self._fbo.use()
             self._ctx.viewport = (0, 0, self.width, self.height)
             self._fbo.clear(*(self.background,) * 4)
             self._texture.use(0)
-            self._vao.render(moderngl.TRIANGLES)
+            if seen.any():
+                self._vao.render(moderngl.TRIANGLES, vertices=3 * int(seen.sum()))
             raw = np.frombuffer(self._fbo.read(components=4, dtype="f4", alignment=1), dtype=np.float32)
         image = raw.reshape(self.height, self.width, 4)[::-1, :, :self.channels]  # GL's first row is the bottom
         return np.ascontiguousarray(image if self.textures.ndim == 4 else image[..., 0])
