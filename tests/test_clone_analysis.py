@@ -483,3 +483,38 @@ def test_the_analysers_weights_are_the_appearances(clone):
         for a in (np.zeros(6), appearance.key_parameters[1], _sequence(3)[2]):
             points = posture_points(model, a[None])[0]
             assert np.allclose(analyser.weights(a), appearance.weights(points), atol=1e-9)
+
+
+@pytest.mark.parametrize("field", [None, "top", "bottom"])
+def test_the_frames_projection_folded_once_places_the_mesh_as_the_plain_projection(clone, field):
+    """The analysis draws the mesh through the camera and pose folded into the rest shape and basis once
+    a frame (``_projector``); it gives the same box image as projecting the moved points each time
+    (``pixels``), on either field and under a head turned and moved, to rounding."""
+    from faceanim.speaker.analysis import pose_matrix
+
+    model, appearance = clone
+    pose = pose_matrix(np.array([0.05, -0.08, 0.03, 0.2, -0.1, 0.4]))
+    with _analyser(model, appearance, field=field) as analyser:
+        for a in _sequence(4):
+            origin = analyser.box_origin(a, pose)
+            plain = (analyser.pixels(analyser.full_points(a)[analyser.mesh.points], pose) - origin) / analyser.factor
+            expected = analyser.raster(plain + [0.3, -0.2], analyser.weights(a))
+            found = analyser._draw(a, analyser._projector(pose, origin), np.array([0.3, -0.2]))
+            assert np.abs(found - expected).max() < 1e-3
+
+
+def test_the_colour_difference_is_the_residuals_sum_of_squares(clone):
+    """The colour comparison's cost, summed from two small products over the box, equals the sum of
+    squares of its residual pixel by pixel (gain and offset per channel over the covered pixels, the
+    rest about its own mean), for the clone at and away from the frame's parameters."""
+    model, appearance = clone
+    truth = _sequence()[3]
+    frame = render_frame(model, appearance, truth, np.eye(4), 160, 160, analysis=False)
+    with _analyser(model, appearance) as analyser:
+        origin = analyser.box_origin(truth, np.eye(4))
+        target = analyser.frame_image(frame, origin)
+        analyser._set_target(target)
+        for step in (0.0, 0.4, -1.0):
+            clone_image = analyser.clone_image(truth + step, np.eye(4), origin)
+            r = analyser._colour_residual(clone_image)
+            assert abs(analyser._colour_difference(clone_image, target) - r @ r / analyser._scale) < 1e-9

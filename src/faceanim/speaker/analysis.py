@@ -467,8 +467,33 @@ class CloneAnalyser:
         """``(box_height, box_width) float32``: the clone's lip probability over the box at ``origin``
         (``(box_height, box_width, 3)``, its colours, -1 where the mesh does not reach, for ``"colour"``),
         moved by ``shift (2,)`` box pixels."""
-        points = self._sub_rest + np.tensordot(parameters, self._sub_basis, axes=1)
-        xy = (self.pixels(points, pose) - origin) / self.factor + np.asarray(shift, dtype=np.float64)
+        return self._draw(np.asarray(parameters, dtype=np.float64), self._projector(pose, origin), shift)
+
+    def _projector(self, pose, origin) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """What places the analysis mesh in the box under ``pose`` with the box at ``origin``, once a
+        frame: the mesh's homogeneous image coordinates are ``h0 + a @ hb`` (``(V, 3)``, ``(K, 3 V)``:
+        the camera and the pose folded into the rest shape and the basis), its box pixels
+        ``h[:, :2] / h[:, 2] * scale + offset`` (:meth:`pixels`, less ``origin``, over ``factor``)."""
+        P = self._camera[:, :3] @ pose[:3, :3]
+        p = self._camera[:, :3] @ pose[:3, 3] + self._camera[:, 3]
+        h0 = self._sub_rest @ P.T + p
+        hb = (self._sub_basis @ P.T).reshape(len(self._sub_basis), -1)
+        x0, y0 = origin
+        if self.field:  # one field's rows: (y - bottom + 0.5) / 2
+            scale = np.array([self.width, self.height / self._rows / 2.0]) / self.factor
+            offset = np.array([-x0, (0.5 - (self.field == "bottom")) / 2.0 - y0]) / self.factor
+        else:
+            scale = np.array([self.width, self.height / self._rows]) / self.factor
+            offset = np.array([-x0, -y0], dtype=np.float64) / self.factor
+        return h0, hb, scale, offset
+
+    def _draw(self, parameters: np.ndarray, projector, shift=None) -> np.ndarray:
+        """:meth:`clone_image` with the frame's :meth:`_projector`."""
+        h0, hb, scale, offset = projector
+        h = h0 + (parameters @ hb).reshape(h0.shape)
+        xy = h[:, :2] / h[:, 2:3] * scale + offset
+        if shift is not None:
+            xy += shift
         return self.raster(xy, self.weights(parameters))
 
     def lip_mask(self, parameters, pose, origin, shape) -> np.ndarray:
@@ -526,6 +551,8 @@ class CloneAnalyser:
         t = np.ascontiguousarray(target, dtype=np.float64).reshape(-1, 3)
         self._square = t * t
         self._target = (t, self._square.sum(axis=0), t.sum(axis=0), float(len(t)))
+        self._sums = np.hstack([np.ones((len(t), 1)), t, self._square])  # (n, 7): 1, colours, their squares
+        self._features = np.empty((len(t), 4))
         self._scale = max(float(((t - t.mean(axis=0)) ** 2).sum()), 1e-6)
 
     def _colour_difference(self, clone: np.ndarray, target: np.ndarray) -> float:
@@ -534,14 +561,17 @@ class CloneAnalyser:
         least-squares gain ``g >= 0`` and offset ``b`` (a change of lighting, exact for the clone's own
         frames under a tinted gain); over the pixels it leaves (the mouth's opening, what the textures do
         not hold), against their own mean colour. 0: the clone explains the box exactly."""
-        m = (clone[..., 0] > _UNCOVERED).reshape(-1).astype(np.float64)
-        c = clone.reshape(-1, 3).astype(np.float64)
         t, tt_all, t_all, n_all = self._target  # the frame's pixels (n, 3), and its sums of squares, sums, count
-        n = float(m.sum())
+        f = self._features  # (n, 4): covered (0 or 1), then the clone's colours where covered, 0 elsewhere
+        f[:, 1:] = clone.reshape(-1, 3)
+        f[:, 0] = f[:, 1] > _UNCOVERED
+        f[:, 1:] *= f[:, :1]
+        ff, ft = f.T @ f, f.T @ self._sums  # the sums over the covered pixels, two small products
+        n = ff[0, 0]
         if n == 0:
             return float((tt_all - t_all * t_all / n_all).sum()) / self._scale
-        cm = c * m[:, None]  # the clone where the mesh reaches, 0 elsewhere
-        sc, st, scc, sct, stt = cm.sum(axis=0), m @ t, (cm * c).sum(axis=0), (cm * t).sum(axis=0), m @ self._square
+        sc, st, stt = ff[0, 1:], ft[0, 1:4], ft[0, 4:]
+        scc, sct = ff.diagonal()[1:], ft[1:, 1:4].diagonal()
         cc, ct, tt = scc - sc * sc / n, sct - sc * st / n, stt - st * st / n  # centred, over the covered pixels
         explained = np.where((cc > 0) & (ct > 0), ct * ct / np.where(cc > 0, cc, 1.0), 0.0)
         left = float((tt - explained).sum())
@@ -666,6 +696,7 @@ class CloneAnalyser:
         self._set_target(target)
         count = 0
         best = [np.inf, None]
+        projector = self._projector(base_pose, origin)  # the pose fixed: the mesh's projection folded once
 
         def evaluate(x, residual=False):
             nonlocal count
@@ -673,8 +704,8 @@ class CloneAnalyser:
                 raise _Spent
             count += 1
             a, c, moved = self._unpack(x)
-            pose = self.pose_of(base_pose, c) if self.rigid else base_pose
-            clone = self.clone_image(a, pose, origin, moved)
+            clone = self._draw(a, self._projector(self.pose_of(base_pose, c), origin) if self.rigid else projector,
+                               moved if self.shift else None)
             if residual:
                 r = self._colour_residual(clone)
                 value = float(r @ r) / self._scale
