@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from conftest import shared
 
-from faceanim.retarget.contours import OPENINGS, opening_rims, opening_sides
+from faceanim.retarget.contours import OPENINGS, SIDE_CORNERS, opening_rims, opening_sides
 from faceanim.retarget.correspondence import _part_with
 
 MOUTH_SOCKET = (11248, 13294)   # ICT-FaceKit's vertex ranges (its README)
@@ -81,3 +81,33 @@ def test_rims_of_the_same_face_lie_on_its_own_border(ict_head):
     edge = np.median(spacing.min(axis=1))
     assert np.isin(ict, rim).mean() > 0.6 and to_rim.max() < 2 * edge  # on the rim, or a ring from it
     assert np.median(np.linalg.norm(points - model.neutral[ict], axis=1)) < 0.01  # cm: lands on its own place
+
+
+def test_the_lips_sides_differ_between_triangulations_only_at_the_corners(ict_head):
+    """The head and its own face region re-made (one surface, two triangulations) split the inner lips into
+    upper and lower alike but behind the mouth's corners, where the split follows the edges; the band of
+    ``corners`` leaves that patch to both sides and changes nothing else."""
+    h = ict_head
+    face, lm = h["face"], h["model"].landmarks
+    tids = face.index_of[lm]
+    mouth = (OPENINGS["ibug68"][0],)
+    made_of = face.from_ict.tocoo()
+    ends = face.mesh.vertices[tids[[60, 64]]]
+    width = np.linalg.norm(ends[1] - ends[0])
+    to_corner = np.linalg.norm(face.mesh.vertices[:, None] - ends[None], axis=2).min(axis=1) / width
+    labels = {}
+    for band in (0.0, SIDE_CORNERS["ibug68"][2]):
+        tside = opening_sides(face.mesh, tids, "ibug68", openings=mouth, corners=[band])
+        truth = np.full(len(h["model"].neutral), -9)
+        truth[h["kept"]] = opening_sides(h["part"], h["local"], "ibug68", openings=mouth, corners=[band])
+        differ = (truth[made_of.col] > 0) & (tside[made_of.row] > 0) & (truth[made_of.col] != tside[made_of.row])
+        rows = np.unique(made_of.row[differ])
+        assert len(rows) and to_corner[rows].max() < 0.1  # 192 differ when written, all within 0.08 widths
+        labels[band] = tside
+    band = SIDE_CORNERS["ibug68"][2]
+    inside = labels[0.0] > 0
+    assert (labels[band][inside & (to_corner < band)] == -1).all()
+    assert (labels[band][inside & (to_corner >= band)] == labels[0.0][inside & (to_corner >= band)]).all()
+    assert (labels[band][~inside] == labels[0.0][~inside]).all()
+    with pytest.raises(ValueError, match="corners must hold one non-negative float per opening"):
+        opening_sides(face.mesh, tids, "ibug68", openings=mouth, corners=[0.1, 0.2])

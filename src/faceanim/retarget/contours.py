@@ -21,7 +21,8 @@ from ..geometry.surface import edge_graph
 from ..geometry.topology import component_labels, open_edges
 from ..mpeg4.multipie import THESIS_16
 
-__all__ = ["LAYOUTS", "LAYOUT_SIZES", "LANDMARK_WEIGHTS", "OPENINGS", "RIMMED", "SIDED", "contour_paths",
+__all__ = ["LAYOUTS", "LAYOUT_SIZES", "LANDMARK_WEIGHTS", "OPENINGS", "RIMMED", "SIDED", "SIDE_CORNERS",
+           "contour_paths",
            "matched_contours", "opening_rims", "opening_sides"]
 
 # The jaw line (points 0-16) is left out: it is a silhouette, not a line on the skin, and the paths
@@ -139,11 +140,22 @@ OPENINGS: dict[str, tuple] = {
 #: tuning pairs the true rim lay 0.5 to 1.2 times as deep on the source as on the target, against loops
 #: of about equal length), so a mouth rim placed by depth pulls the inner lip to the wrong place.
 RIMMED: dict[str, tuple] = {"ibug68": ((4, 5), (6, 7)), "thesis16": ()}
-#: The openings across which :class:`~faceanim.retarget.DenseTransfer` carries no motion: the eyes'. Kept
-#: to its own side of the mouth as well, a target vertex on the inner lip lands farther from where it
-#: belongs where the registration left the source's inner lip off the target's (on ICT-FaceKit's tuning
-#: pairs: seed 7 median 0.080 -> 0.087 and worst 0.157 -> 0.245, seed 11 median 0.097 -> 0.109).
-SIDED: dict[str, tuple] = {"ibug68": ((4, 5), (6, 7)), "thesis16": ()}
+#: The openings across which :class:`~faceanim.retarget.DenseTransfer` carries no motion: the eyes' and the
+#: mouth's (iBUG), so a target vertex on the inner lip never takes the other lip's motion where the
+#: registration left the lips misaligned (ICT-FaceKit's sigma-2.5 tuning pairs: seed 5 median 0.169 ->
+#: 0.141, seed 3 at sigma 2.5 worst 0.719 -> 0.527, mouthRollLower).
+SIDED: dict[str, tuple] = {"ibug68": ((4, 5), (6, 7), (10, 11)), "thesis16": ()}
+#: For each opening in :data:`SIDED`, the band around its corners left to both sides, as a fraction of
+#: the opening's width (``corners`` of :func:`opening_sides`). Behind the mouth's corners the split
+#: between the lips depends on the triangulation: ICT-FaceKit's head and its own face region re-made
+#: (one surface) disagree on 192 of 2,276 inner-lip vertices, all within 0.34 cm (0.08 widths) of a
+#: corner. Without a band a target vertex there, labelled upper lip where the source's patch is lower
+#: lip, lands 1.4 cm along the upper lip (tuning seed 7: median 0.080 -> 0.087, worst mouthDimple_L
+#: 0.157 -> 0.245). A band of 0.03 frees the source's corner triangles for both lips, which gives those
+#: vertices their landing back (seed 7: 0.077 / 0.159); wider bands let the inner lips cross again near
+#: the corners (seed 5 median 0.141 at 0.03, 0.147 at 0.05, 0.154 at 0.1). The lids need none (0.05 and
+#: 0.1 changed no tuning pair's median by more than 0.001).
+SIDE_CORNERS: dict[str, tuple] = {"ibug68": (0.0, 0.0, 0.03), "thesis16": ()}
 
 
 def _loop(mesh: Mesh, curves, contours) -> tuple[np.ndarray, np.ndarray, int]:
@@ -184,7 +196,7 @@ def _inside(mesh: Mesh, loop: np.ndarray, outside: np.ndarray, *, depth: bool = 
     return inside, np.where(np.isfinite(hops), heat, np.inf), nearest
 
 
-def opening_sides(mesh: Mesh, control_vertices, layout: str, *, openings=None) -> np.ndarray:
+def opening_sides(mesh: Mesh, control_vertices, layout: str, *, openings=None, corners=None) -> np.ndarray:
     """Which side of each opening of the layout every vertex lies on, ``(V,) int64``.
 
     0: outside every opening (the face); ``2k + 1`` and ``2k + 2``: inside opening ``k`` of ``openings``
@@ -192,11 +204,21 @@ def opening_sides(mesh: Mesh, control_vertices, layout: str, *, openings=None) -
     point), nearer the loop's first contour (the upper lip or lid) or its second (the lower); -1: on a
     loop itself, which borders both sides. The two lips (lids), and they and the skin around them, move
     apart.
+
+    ``corners`` (one float per opening, default all 0): a vertex inside opening ``k`` that lies within
+    ``corners[k]`` times the opening's width (the distance between its two corners, the ends of its first
+    contour) of either corner is labelled -1 too. Behind a corner, where the two sides meet, which side is
+    nearer depends on the triangulation (the nearest loop vertex along the edges), so two meshes of one
+    face split that patch differently.
     """
     ids = np.asarray(control_vertices, dtype=np.int64)
     curves = contour_paths(mesh, ids, layout)
     side = np.zeros(len(mesh.vertices), dtype=np.int64)
-    for k, contours in enumerate(OPENINGS[layout] if openings is None else openings):
+    openings = OPENINGS[layout] if openings is None else openings
+    corners = np.zeros(len(openings)) if corners is None else np.asarray(corners, dtype=np.float64)
+    if corners.shape != (len(openings),) or (corners < 0).any():
+        raise ValueError(f"corners must hold one non-negative float per opening ({len(openings)}), got {corners}")
+    for k, contours in enumerate(openings):
         on_loop = sorted({c for contour in contours for c in LAYOUTS[layout][contour]})
         loop, param, _ = _loop(mesh, curves, contours)
         inside, _, nearest = _inside(mesh, loop, ids[np.setdiff1d(np.arange(len(ids)), on_loop)], depth=False)
@@ -206,6 +228,11 @@ def opening_sides(mesh: Mesh, control_vertices, layout: str, *, openings=None) -
         lower = at[np.where(nearest >= 0, nearest, 0)] >= first
         side[inside] = np.where(lower[inside], 2 * k + 2, 2 * k + 1)
         side[loop] = -1
+        if corners[k] > 0:
+            ends = mesh.vertices[ids[[LAYOUTS[layout][contours[0]][0], LAYOUTS[layout][contours[0]][-1]]]]
+            reach = corners[k] * float(np.linalg.norm(ends[1] - ends[0]))
+            near = np.linalg.norm(mesh.vertices[:, None] - ends[None], axis=2).min(axis=1) < reach
+            side[inside & near] = -1
     return side
 
 

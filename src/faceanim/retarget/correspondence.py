@@ -7,9 +7,10 @@ points as landmarks and, for a known control-point layout, the face's contours (
 brows, nose) matched as curves (:mod:`~faceanim.retarget.contours`) as further landmarks at half
 weight, and the eyes' rims (where a target without eye sockets ends inside the lids,
 :func:`~faceanim.retarget.contours.opening_rims`) likewise. The registration also records which side of
-the eye openings each source vertex lies on (:func:`~faceanim.retarget.contours.opening_sides`,
+the eye openings and the mouth each source vertex lies on (:func:`~faceanim.retarget.contours.opening_sides`,
 :data:`~faceanim.retarget.contours.SIDED`), so that :class:`~faceanim.retarget.DenseTransfer` never
-carries motion across the lids.
+carries motion across the lids or the lips (but at the mouth's corners,
+:data:`~faceanim.retarget.contours.SIDE_CORNERS`).
 
 A registration takes seconds to tens of seconds (26,719 vertices), so it is kept in an in-process
 LRU cache of the last :data:`CACHE_SIZE` registrations, keyed by SHA-1 digests of both meshes'
@@ -30,7 +31,16 @@ from ..geometry.mesh import Mesh
 from ..geometry.nicp import NicpOptions, register_surface
 from ..geometry.rbf import RbfWarp
 from ..geometry.topology import component_labels
-from .contours import LANDMARK_WEIGHTS, LAYOUT_SIZES, LAYOUTS, SIDED, matched_contours, opening_rims, opening_sides
+from .contours import (
+    LANDMARK_WEIGHTS,
+    LAYOUT_SIZES,
+    LAYOUTS,
+    SIDE_CORNERS,
+    SIDED,
+    matched_contours,
+    opening_rims,
+    opening_sides,
+)
 
 __all__ = ["FaceRegistration", "register_faces", "CACHE_SIZE", "CONTOUR_WEIGHT", "RIM_WEIGHT"]
 
@@ -143,7 +153,7 @@ def _register(source, target, source_ids, target_ids, contours, options) -> Face
     reg = register_surface(part, target, source_landmarks=landmarks, target_points=points,
                            landmark_weights=weights, initial=start, options=options)
     sides = np.zeros(len(kept), dtype=np.int64) if contours is None else \
-        opening_sides(part, local, contours, openings=SIDED[contours])
+        opening_sides(part, local, contours, openings=SIDED[contours], corners=SIDE_CORNERS[contours])
     return FaceRegistration(Mesh(reg.vertices, part.triangles), kept, reg.fit, reg.landmark_error,
                             len(landmarks) - len(local), contours, sides)
 

@@ -34,7 +34,7 @@ from ..geometry.rbf import RbfWarp, apply_operator
 from ..geometry.surface import BiharmonicInterpolation, SurfaceRbf
 from ..geometry.topology import component_labels
 from ..validation import as_array, as_index_array
-from .contours import SIDED, opening_sides
+from .contours import SIDE_CORNERS, SIDED, opening_sides
 from .correspondence import register_faces
 
 __all__ = ["ControlPairs", "SparseTransfer", "DenseTransfer", "transfer_expression", "METHODS", "METRICS"]
@@ -182,7 +182,8 @@ class DenseTransfer:
         layout = self.registration.layout if register else None
         if layout is not None and SIDED[layout]:
             sides = (self.registration.sides,
-                     opening_sides(target, pairs.target, layout, openings=SIDED[layout])[moving])
+                     opening_sides(target, pairs.target, layout, openings=SIDED[layout],
+                                   corners=SIDE_CORNERS[layout])[moving])
         else:
             sides = None
         self.projection = _project_by_side(warped, target.vertices[moving], target.vertex_normals[moving],
