@@ -228,6 +228,38 @@ def test_numpy_and_gl_rasterisers_agree():
     assert theirs.shape == (36, 48, 3) and np.abs(mine - theirs).max() < 1e-2
 
 
+def test_the_gl_rasteriser_leaves_out_only_triangles_that_cover_no_pixel():
+    """A mesh reaching well beyond the box (triangles wholly outside on each side, others across its
+    edges): GL, which leaves the outside ones undrawn, gives numpy's image; the box's every pixel drawn
+    once the mesh covers it, none where it does not."""
+    pytest.importorskip("moderngl")
+    from scipy.spatial import Delaunay
+
+    from faceanim.speaker.lipraster import GlLipRaster, _reaching
+
+    rng = np.random.default_rng(1)
+    xy = np.r_[rng.uniform(-30, 60, (600, 2)), [[-40, -40], [70, -40], [70, 60], [-40, 60]]]
+    triangles = Delaunay(xy).simplices
+    uv = (xy + 40) / [110, 100]
+    colours = rng.uniform(0, 255, (2, 16, 16, 3)).astype(np.float32)
+    seen = _reaching(xy, triangles, 24, 20)
+    assert 0 < seen.sum() < len(triangles) // 2  # most are left out
+    low, high = xy[triangles].min(axis=1), xy[triangles].max(axis=1)  # over the span of the pixel centres
+    assert np.array_equal(seen, ((high >= 0.5) & (low <= [23.5, 19.5])).all(axis=1))
+    _, covering, _ = NumpyLipRaster(triangles, uv, colours, width=24, height=20).coverage(xy)
+    assert seen[covering].all()
+    mine = NumpyLipRaster(triangles, uv, colours, width=24, height=20, background=-1.0)(xy, [0.6, 0.4])
+    try:
+        gl = GlLipRaster(triangles, uv, colours, width=24, height=20, background=-1.0)
+    except RuntimeError as exc:
+        pytest.skip(f"no OpenGL context: {exc}")
+    with gl:
+        theirs = gl(xy, [0.6, 0.4])
+        away = gl(xy + 100.0, [0.6, 0.4])  # the whole mesh beside the box: nothing drawn
+    assert (mine > -1).all() and np.abs(mine - theirs).max() < 1e-2
+    assert (away == -1.0).all()
+
+
 # ---- the analysis mesh and the tracker
 
 

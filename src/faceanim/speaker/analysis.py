@@ -552,7 +552,7 @@ class CloneAnalyser:
         self._square = t * t
         self._target = (t, self._square.sum(axis=0), t.sum(axis=0), float(len(t)))
         self._sums = np.hstack([np.ones((len(t), 1)), t, self._square])  # (n, 7): 1, colours, their squares
-        self._features = np.empty((len(t), 4))
+        self._features = np.empty((4, len(t)))
         self._scale = max(float(((t - t.mean(axis=0)) ** 2).sum()), 1e-6)
 
     def _colour_difference(self, clone: np.ndarray, target: np.ndarray) -> float:
@@ -562,11 +562,11 @@ class CloneAnalyser:
         frames under a tinted gain); over the pixels it leaves (the mouth's opening, what the textures do
         not hold), against their own mean colour. 0: the clone explains the box exactly."""
         t, tt_all, t_all, n_all = self._target  # the frame's pixels (n, 3), and its sums of squares, sums, count
-        f = self._features  # (n, 4): covered (0 or 1), then the clone's colours where covered, 0 elsewhere
-        f[:, 1:] = clone.reshape(-1, 3)
-        f[:, 0] = f[:, 1] > _UNCOVERED
-        f[:, 1:] *= f[:, :1]
-        ff, ft = f.T @ f, f.T @ self._sums  # the sums over the covered pixels, two small products
+        f = self._features  # (4, n): covered (0 or 1), then the clone's colours where covered, 0 elsewhere
+        f[1:] = clone.reshape(-1, 3).T
+        np.greater(f[1], _UNCOVERED, out=f[0])
+        f[1:] *= f[0]
+        ff, ft = f @ f.T, f @ self._sums  # the sums over the covered pixels, two small products
         n = ff[0, 0]
         if n == 0:
             return float((tt_all - t_all * t_all / n_all).sum()) / self._scale
@@ -711,7 +711,9 @@ class CloneAnalyser:
                 value = float(r @ r) / self._scale
             else:
                 value = self._difference(clone, target)
-            value += self.prior * np.mean(a ** 2) + self._beyond(a)
+            value += self._beyond(a)
+            if self.prior:
+                value += self.prior * float(a @ a) / len(a)
             if self.rigid:  # the correction held near the tracker's pose: one simplex step costs as one std
                 value += self.prior * np.mean((c / _RIGID_STEPS) ** 2)
             if self.shift:  # the shift held within a few pixels of the tracker's place

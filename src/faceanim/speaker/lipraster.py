@@ -72,16 +72,24 @@ def prefilter(textures, footprint: float) -> np.ndarray:
     return np.ascontiguousarray(t, dtype=np.float32)
 
 
-def _reaching(corners: np.ndarray, width: int, height: int) -> np.ndarray:
-    """``(F,) bool``: the triangles at ``corners (F, 3, 2)`` (box pixels) whose bounding box holds a
-    pixel centre of the ``width x height`` box (``(j + 0.5, i + 0.5)``); the others cover none of its
-    pixels, so leaving them out changes no pixel.
+def _reaching(xy: np.ndarray, triangles: np.ndarray, width: int, height: int) -> np.ndarray:
+    """``(F,) bool``: the ``triangles (F, 3)`` at vertices ``xy (V, 2)`` (box pixels) whose bounding
+    box meets the span of the ``width x height`` box's pixel centres (``[0.5, width - 0.5] x [0.5,
+    height - 0.5]``); the others cover none of its pixels, so leaving them out changes no pixel. A
+    triangle's box misses the span when its three corners lie beyond the same one of its four sides
+    (each vertex's side codes, and-ed).
 
-    >>> _reaching(np.array([[[0, 0], [4, 0], [0, 4]], [[5, 0], [9, 0], [5, 4]]], float), 4, 4).tolist()
-    [True, False]
+    >>> # inside the box, beside it, thin by its left edge, reaching over that edge
+    >>> xy = np.array([[0, 0], [4, 0], [0, 4], [5, 0], [9, 0], [5, 4], [0.6, 1], [1.4, 1], [1, 3], [0, 1], [0.4, 1]])
+    >>> _reaching(xy, np.array([[0, 1, 2], [3, 4, 5], [6, 7, 8], [9, 10, 8]]), 4, 4).tolist()
+    [True, False, True, True]
+    >>> _reaching(xy, np.array([[9, 10, 9]]), 4, 4).tolist()  # left of every centre
+    [False]
     """
-    low, high = corners.min(axis=1), corners.max(axis=1)
-    return ((high[:, 0] >= 0.5) & (low[:, 0] <= width - 0.5) & (high[:, 1] >= 0.5) & (low[:, 1] <= height - 0.5))
+    x, y = xy[:, 0], xy[:, 1]
+    code = ((x < 0.5) | ((x > width - 0.5) << 1) | ((y < 0.5) << 2) | ((y > height - 0.5) << 3)).astype(np.uint8)
+    corners = code[triangles]
+    return (corners[:, 0] & corners[:, 1] & corners[:, 2]) == 0
 
 
 class _Raster:
@@ -260,7 +268,7 @@ in vec2 uv;
 out vec2 texcoord;
 void main() {
     texcoord = uv;
-    gl_Position = vec4(2.0 * position.x / size.x - 1.0, 1.0 - 2.0 * position.y / size.y, 0.0, 1.0);
+    gl_Position = vec4(2.0 * position.x / size.x - 1.0, 2.0 * position.y / size.y - 1.0, 0.0, 1.0);
 }
 """
 _GL_FRAGMENT = """
@@ -309,6 +317,7 @@ class GlLipRaster(_Raster):
         self._program["lips"].value = 0
         self._program["size"].value = (float(self.width), float(self.height))
         self._weights = self._program["weights"]
+        self._read = np.empty(self.width * self.height * 4, np.float32)
         self._data = np.zeros((len(self.uv), 4), dtype="f4")
         self._data[:, 2:] = self.uv
         self._vbo = ctx.buffer(reserve=self._data.nbytes)
@@ -322,7 +331,7 @@ class GlLipRaster(_Raster):
 
         xy, w = self._check(xy, weights)
         self._data[:, :2] = xy
-        seen = _reaching(xy[self.triangles], self.width, self.height)
+        seen = _reaching(xy, self.triangles, self.width, self.height)
         with self._ctx:  # this context made current (another one, a clone renderer's, may be open)
             self._vbo.write(self._data)
             self._ibo.write(self._indices[seen])  # llvmpipe's time goes with the triangles drawn
@@ -333,9 +342,10 @@ class GlLipRaster(_Raster):
             self._texture.use(0)
             if seen.any():
                 self._vao.render(moderngl.TRIANGLES, vertices=3 * int(seen.sum()))
-            raw = np.frombuffer(self._fbo.read(components=4, dtype="f4", alignment=1), dtype=np.float32)
-        image = raw.reshape(self.height, self.width, 4)[::-1, :, :self.channels]  # GL's first row is the bottom
-        return np.ascontiguousarray(image if self.textures.ndim == 4 else image[..., 0])
+            self._fbo.read_into(self._read, components=4, dtype="f4", alignment=1)
+        # drawn upside down (y up the box in the vertex shader), so GL's first row is the box's top
+        image = self._read.reshape(self.height, self.width, 4)[..., :self.channels].copy()
+        return image if self.textures.ndim == 4 else image[..., 0]
 
     def close(self):
         if getattr(self, "_ctx", None) is not None:
