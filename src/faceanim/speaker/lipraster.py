@@ -143,9 +143,7 @@ class NumpyLipRaster(_Raster):
     def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0):
         super().__init__(triangles, uv, textures, width=width, height=height, background=background)
         Q, s, r = self.textures.shape[:3]
-        self._flat = np.ascontiguousarray(self.textures.reshape(Q, -1))  # (Q, s*r*C)
-        # texel-major, every key's channels side by side: a texel's Q*C values read at once, mixed after
-        self._texels = np.ascontiguousarray(np.moveaxis(self.textures.reshape(Q, s * r, -1), 0, 1).reshape(s * r, -1))
+        self._flat = np.ascontiguousarray(self.textures.reshape(Q, -1))  # (Q, s*r*C): mixed by one product
         self._size = (s, r)
         self._uv_corners = self.uv[self.triangles]  # (F, 3, 2)
 
@@ -224,8 +222,9 @@ class NumpyLipRaster(_Raster):
             k = au.reshape(-1, 6)[triangle]
             x, y = px + 0.5, py + 0.5
             uv = np.stack([k[:, 0] * x + k[:, 1] * y + k[:, 2], k[:, 3] * x + k[:, 4] * y + k[:, 5]], axis=1)
-            read = self._bilinear(self._texels, uv).reshape(len(uv), len(w), C)  # each key's texture at each pixel
-            image[py * self.width + px] = np.matmul(w, read)
+            # the keys mixed first (reading is linear): one texture of C channels read, not Q of them
+            mixed = (w @ self._flat).reshape(-1, C)
+            image[py * self.width + px] = self._bilinear(mixed, uv)
         return image.reshape((self.height, self.width) + ((C,) if self.textures.ndim == 4 else ()))
 
     def _bilinear(self, texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
