@@ -328,3 +328,36 @@ def test_the_teeth_contact_leaves_no_lip_vertex_deeper_than_at_rest_whatever_it_
             local = h + r * np.cos(turn) + np.cross(a, r) * np.sin(turn) + np.outer(r @ a, a) * (1 - np.cos(turn))
             signed = signed_offsets(local, teeth.surface)[0]
             assert (signed >= teeth.allowed - 0.01).all(), (teeth.turn_share, t, (teeth.allowed - signed).max())
+
+
+def test_a_jaw_weight_that_would_fold_the_skin_is_raised_until_no_turn_up_to_the_widest_folds():
+    """A weight stepping from 1 to 0 across a sheet, turned so the weighted half swings into the other:
+    the raw weight turns triangles over; the unfolded one turns none at any angle up to the widest
+    (or down to the furthest closing), never lowers a weight, and leaves the full-weight half alone."""
+    from conftest import grid_mesh
+
+    from faceanim.parts.jaw import unfolded_jaw_weight
+
+    mesh = grid_mesh(21)
+    rest, tris = mesh.vertices, mesh.triangles
+    hinge, axis = np.array([0.5, 2.0, 0.0]), np.array([0.0, 0.0, 1.0])  # the swing runs along +x, in the sheet
+    raw = (rest[:, 0] < 0.5).astype(float)
+
+    def folds(weight, angle):
+        c, s = np.cos(angle), np.sin(angle)
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        moved = rest + weight[:, None] * ((rest - hinge) @ (R - np.eye(3)).T)
+        v0, v1 = rest[tris], moved[tris]
+        n0 = np.cross(v0[:, 1] - v0[:, 0], v0[:, 2] - v0[:, 0])
+        n1 = np.cross(v1[:, 1] - v1[:, 0], v1[:, 2] - v1[:, 0])
+        return int(((n0 * n1).sum(axis=1) < 0).sum())
+
+    assert folds(raw, 0.6) > 0
+    weight = unfolded_jaw_weight(rest, tris, raw, hinge, axis, [-0.05, 0.2, 0.6])
+    assert all(folds(weight, a) == 0 for a in np.linspace(-0.05, 0.6, 14))
+    assert (weight >= raw).all() and (weight[raw == 1] == 1).all()
+    assert weight[raw == 0].max() > 0.5  # the raise is real: the unweighted side goes some way along
+    np.testing.assert_array_equal(unfolded_jaw_weight(rest, tris, np.ones(len(rest)), hinge, axis, [0.6]),
+                                  np.ones(len(rest)))
+    kept = unfolded_jaw_weight(rest, tris, raw, hinge, axis, [0.6], movable=rest[:, 0] < 0.75)
+    np.testing.assert_array_equal(kept[rest[:, 0] >= 0.75], 0.0)  # vertices not movable keep their weight

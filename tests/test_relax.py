@@ -20,3 +20,24 @@ def test_a_fold_is_relaxed_and_a_frame_without_one_is_left_exactly_as_it_was():
     assert left.tolist() == [0, 0] and not relaxer.turned(out[1]).any()
     far = np.linalg.norm(rest[:, :2] - rest[centre, :2], axis=1) > 0.75
     np.testing.assert_array_equal(out[1, far], folded[far])  # only the fold's neighbourhood moved
+
+
+def test_a_fold_is_relaxed_over_a_base_motion_and_pinned_vertices_stay_where_they_are_given():
+    """The fill replaces only the residual over the base: with the whole sheet lifted and shifted by
+    the base, the relaxed fold keeps that motion far from it, and a pinned vertex next to the fold
+    stays exactly where it was given."""
+    mesh = grid_mesh(12)
+    rest = mesh.vertices
+    shift = np.array([0.3, -0.2, 0.5])
+    base = rest + shift
+    centre = np.argmin(np.linalg.norm(rest[:, :2] - 0.5, axis=1))
+    folded = base.copy()
+    folded[centre, :2] += [0.2, 0.2]
+    neighbour = np.argsort(np.linalg.norm(rest - rest[centre], axis=1))[1]
+    pinned = np.zeros((1, len(rest)), dtype=bool)
+    pinned[0, neighbour] = True
+    relaxer = FoldRelaxer(rest, mesh.triangles)
+    out, left = relaxer(folded[None], base[None], pinned)
+    assert left.tolist() == [0] and not relaxer.turned(out[0]).any()
+    np.testing.assert_array_equal(out[0, neighbour], folded[neighbour])
+    np.testing.assert_allclose(out[0, centre], base[centre], atol=0.05)  # the fill follows the base, not the rest

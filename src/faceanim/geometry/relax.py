@@ -2,16 +2,27 @@
 
 Interpolated motion can fold a surface where the motion it interpolates disagrees with itself: two
 tracked points a few millimetres apart that move a centimetre apart (a lip's rim against its inner
-side, the jaw's contour against the skin beneath it). The triangles between turn over. Here each
-frame's folded neighbourhoods have their displacements smoothed (averaged with their neighbours'),
-growing the neighbourhood until no triangle in it is turned over or a round limit is reached.
-Vertices away from folds are untouched, so a control point off a fold still lands exactly.
+side, the corner of the mouth where the lining creases back). The triangles between turn over.
+
+Here each frame's folded neighbourhoods have their displacement *over a base motion* replaced by its
+harmonic fill (cotangent Laplacian) from the neighbourhood's edge, growing the neighbourhood until no
+triangle in it is turned over. The base is a motion known not to fold (the jaw's turn, whose weights
+:func:`faceanim.parts.jaw.unfolded_jaw_weight` keeps from folding), so what is smoothed is only the
+part that disagrees with itself, and a fold next to the chin does not flatten the chin's drop.
+Harmonic, not averaged: an average over a few rounds leaves a fold across a crease of tiny triangles
+(it moves each vertex a little towards its neighbours), and can make one where none was; the fill is
+the smoothest field with the edge's values, so the crease moves as one piece. Vertices away from
+folds are untouched, so a control point off a fold still lands exactly.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from scipy import sparse
+from scipy.sparse.linalg import splu
+
+from .mesh import Mesh
+from .surface import cotangent_laplacian
 
 __all__ = ["FoldRelaxer"]
 
@@ -26,10 +37,17 @@ class FoldRelaxer:
     triangles : (F, 3) int64
         The triangles to keep from turning over (those of the surface that must not fold).
     rounds : int
-        At most this many smoothing passes per frame (each pass averages a neighbourhood once).
+        At most this many fills per frame, the neighbourhood growing by ``grow`` rings after each.
+    rings, grow : int
+        The first neighbourhood is the folded triangles' vertices and ``rings`` rings around them.
+    largest : float
+        A neighbourhood stops growing at this share of the vertices (what folds is local; filling the
+        whole surface would flatten the motion it is meant to keep).
 
-    Calling it with positions ``(T, V, 3)`` returns relaxed positions and, per frame, how many
-    triangles stay turned over.
+    Calling it with positions ``(T, V, 3)`` (and optionally the base positions ``(T, V, 3)`` that do
+    not fold, default the rest; and ``pinned (T, V) bool``, vertices kept where they are given, which
+    the fills take as edge values) returns relaxed positions and, per frame, how many triangles stay
+    turned over.
 
     Examples
     --------
@@ -41,18 +59,20 @@ class FoldRelaxer:
     0
     """
 
-    def __init__(self, rest, triangles, *, rounds: int = 60):
+    def __init__(self, rest, triangles, *, rounds: int = 12, rings: int = 2, grow: int = 2, largest: float = 0.25):
         self.rest = np.asarray(rest, dtype=np.float64)
         self.triangles = np.asarray(triangles, dtype=np.int64)
-        self.rounds = int(rounds)
+        self.rounds, self.rings, self.grow = int(rounds), int(rings), int(grow)
         V = len(self.rest)
+        self._largest = max(1, int(largest * V))
         e = np.sort(self.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
         e = np.unique(e, axis=0)
-        A = sparse.coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
-                              shape=(V, V)).tocsr()
-        degree = np.asarray(A.sum(axis=1)).ravel()
-        self._adjacency = A
-        self._average = sparse.diags(1.0 / np.maximum(degree, 1)) @ A
+        self._adjacency = sparse.coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
+                                            shape=(V, V)).tocsr()
+        L, _ = cotangent_laplacian(Mesh(self.rest, self.triangles))
+        # A neighbourhood holding a whole island has no edge to fill from: the tiny diagonal term
+        # makes the island take the base's motion instead of a singular solve.
+        self._laplacian = (L + sparse.diags(np.full(V, 1e-9 * max(abs(L.diagonal()).max(), 1e-300)))).tocsr()
         self._rest_normals = self._normals(self.rest)
 
     def _normals(self, positions: np.ndarray) -> np.ndarray:
@@ -63,48 +83,38 @@ class FoldRelaxer:
         """``(F,) bool``: the triangles turned over in one frame ``(V, 3)``."""
         return (self._normals(positions) * self._rest_normals).sum(axis=1) < 0
 
-    def __call__(self, positions) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, positions, base=None, pinned=None) -> tuple[np.ndarray, np.ndarray]:
         out = np.array(positions, dtype=np.float64)
         left = np.zeros(len(out), dtype=np.int64)
         for t in range(len(out)):
-            left[t] = self._relax(out[t])
+            left[t] = self._relax(out[t], self.rest if base is None else np.asarray(base[t], dtype=np.float64),
+                                  None if pinned is None else np.asarray(pinned[t], dtype=bool))
         return out, left
 
-    def _relax(self, frame: np.ndarray) -> int:
+    def _relax(self, frame: np.ndarray, base: np.ndarray, pinned: np.ndarray | None) -> int:
         """Relax one frame in place; returns the triangles still turned over."""
         turned = self.turned(frame)
         if not turned.any():
             return 0
-        region = self._grow(np.unique(self.triangles[turned]), 3)
-        average, near = self._around(region)
-        d = frame - self.rest
-        for k in range(self.rounds):
-            d[region] = 0.5 * d[region] + 0.5 * (average @ d)
-            if k % 4 == 3:
-                # Only triangles touching the region can have changed.
-                turned = near[self._turned_among(self.rest + d, near)]
-                if not len(turned):
-                    break
-                grown = np.union1d(region, self._grow(np.unique(self.triangles[turned]), 2))
-                if len(grown) > len(region):
-                    region = grown
-                    average, near = self._around(region)
-        frame[:] = self.rest + d
-        return int(self.turned(frame).sum())
+        free = np.ones(len(frame), dtype=bool) if pinned is None else ~pinned
+        region = self._grown(np.unique(self.triangles[turned]), self.rings) & free
+        residual = frame - base
+        for _ in range(self.rounds):
+            inside = np.flatnonzero(region)
+            outside = np.flatnonzero(~region)
+            L = self._laplacian[inside]
+            filled = splu(L[:, inside].tocsc()).solve(-(L[:, outside] @ residual[outside]))
+            frame[inside] = base[inside] + filled
+            turned = self.turned(frame)
+            if not turned.any() or region.sum() >= self._largest:
+                break
+            region |= self._grown(np.unique(self.triangles[turned]), 0)
+            region = self._grown(np.flatnonzero(region), self.grow) & free
+        return int(turned.sum())
 
-    def _around(self, region: np.ndarray):
-        """The averaging rows of ``region`` and the triangles touching it."""
-        inside = np.zeros(len(self.rest), dtype=bool)
-        inside[region] = True
-        return self._average[region], np.flatnonzero(inside[self.triangles].any(axis=1))
-
-    def _turned_among(self, positions: np.ndarray, which: np.ndarray) -> np.ndarray:
-        v = positions[self.triangles[which]]
-        return (np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]) * self._rest_normals[which]).sum(axis=1) < 0
-
-    def _grow(self, vertices: np.ndarray, rings: int) -> np.ndarray:
+    def _grown(self, vertices: np.ndarray, rings: int) -> np.ndarray:
         mask = np.zeros(len(self.rest), dtype=bool)
         mask[vertices] = True
         for _ in range(rings):
             mask |= (self._adjacency @ mask.astype(np.float64)) > 0
-        return np.flatnonzero(mask)
+        return mask

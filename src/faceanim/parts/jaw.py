@@ -1,9 +1,11 @@
-"""How much of the jaw's turn each skin vertex follows: a harmonic field along the skin."""
+"""How much of the jaw's turn each skin vertex follows: a harmonic field along the skin, kept from
+folding the skin at the widest turn (:func:`unfolded_jaw_weight`)."""
 
 from __future__ import annotations
 
 import numpy as np
 from scipy import sparse
+from scipy.sparse.csgraph import dijkstra
 from scipy.sparse.linalg import spsolve
 
 from ..geometry.mesh import Mesh
@@ -12,6 +14,11 @@ from ..geometry.topology import component_labels, submesh
 from ..target import Target
 from .faceparts import _LOWER_LIP, _UPPER_LIP
 from .frame import _Frame, _smoothstep
+
+__all__ = ["unfolded_jaw_weight"]
+
+# How much of its rest length (along itself) a skin edge keeps, at least, under the jaw's turn alone.
+KEPT_ALONG = 0.3
 
 
 def _skin_jaw_weight(mesh: Mesh, skin: np.ndarray, frame: _Frame, target: Target) -> np.ndarray:
@@ -68,3 +75,85 @@ def _skin_jaw_weight(mesh: Mesh, skin: np.ndarray, frame: _Frame, target: Target
         b = -L[free][:, ~free] @ out[~free]
         out[free] = spsolve(A.tocsc(), b)
     return np.clip(out, 0.0, 1.0)
+
+
+def unfolded_jaw_weight(rest, triangles, weight, hinge, axis, angles, *, movable=None) -> np.ndarray:
+    """``(V,)`` ``weight`` raised where turning by it would fold the surface.
+
+    A vertex turned by its weight ``w`` moves by ``w (R - I)(x - h)`` (``R`` the turn by an angle
+    about ``axis`` through ``hinge``). Where ``w`` falls steeply along the way the turn swings (under
+    the chin, towards the neck; across the mouth's corners when the jaw closes past rest), the skin
+    with the higher weight swings into the skin beside it and the triangles between turn over. A
+    triangle keeps each corner's height over the opposite edge at least :data:`KEPT_ALONG` of its rest
+    height while the corner's weight and each of the edge's ends' differ by less than a bound set by
+    that height and the swing across it (so a sliver, whose height is a hair, keeps its three weights
+    nearly equal). These are difference constraints, so the least raise of the lower weights that
+    meets them all is a shortest-path problem (Dijkstra from a virtual source, the bounds as edge
+    lengths): the neck goes along with the chin a little further down, the chin keeps its weight.
+
+    Parameters
+    ----------
+    rest : (V, 3) float64
+    triangles : (F, 3) int64
+        The triangles of the surface that must not fold.
+    weight : (V,) float64
+        In [0, 1].
+    hinge, axis : (3,) float64
+        The turn's centre and axis (opening turns are positive angles about ``axis``).
+    angles : array-like of float
+        The turns the motion makes (radians); its widest opening and its furthest closing are kept from folding.
+    movable : (V,) bool, optional
+        The vertices whose weight may be raised (default all).
+    """
+    weight = np.asarray(weight, dtype=np.float64)
+    angles = np.asarray(angles, dtype=np.float64).ravel()
+    extremes = [t for t in (angles.max(initial=0.0), angles.min(initial=0.0)) if t != 0]
+    triangles = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if not extremes or not weight.any() or not len(triangles):
+        return weight
+    rest = np.asarray(rest, dtype=np.float64)
+    a = np.asarray(axis, dtype=np.float64) / np.linalg.norm(axis)
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    high, low, room = [], [], []
+    for corner in range(3):
+        k, i, j = (triangles[:, (corner + n) % 3] for n in range(3))
+        base = rest[j] - rest[i]
+        up = rest[k] - rest[i]
+        # The corner's height over the opposite edge, and the unit direction it is measured along.
+        across = up - base * (np.einsum("ij,ij->i", up, base) / np.maximum(np.einsum("ij,ij->i", base, base),
+                                                                           1e-300))[:, None]
+        height = np.linalg.norm(across, axis=1)
+        usable = height > 0
+        k, i, j, across, height = k[usable], i[usable], j[usable], across[usable], height[usable]
+        direction = across / height[:, None]
+        apart = rest[k] - 0.5 * (rest[i] + rest[j])
+        for angle in extremes:
+            swing = np.sin(angle) * K + (1 - np.cos(angle)) * (K @ K)  # R - I
+            # The corner's new height: height + w_mean (R - I) apart . dir + (w_k - w_edge) (R - I) r_k . dir.
+            # The middle term is no lower than with w_mean = 1 (or 0), so the bound holds whatever the
+            # weights become; w_k - w_edge is bounded through w_k - w_i and w_k - w_j.
+            kept = height + np.minimum(0.0, np.einsum("ij,ij->i", apart @ swing.T, direction))
+            lift = np.einsum("ij,ij->i", (rest[k] - hinge) @ swing.T, direction)
+            bound = np.maximum(kept - KEPT_ALONG * height, 0.0) / np.maximum(np.abs(lift), 1e-300)
+            for end in (i, j):
+                high.append(np.where(lift < 0, k, end))  # the bound is on w[high] - w[low]
+                low.append(np.where(lift < 0, end, k))
+                room.append(bound)
+    high, low, room = np.concatenate(high), np.concatenate(low), np.concatenate(room)
+    V = len(weight)
+    if movable is not None:
+        free = np.asarray(movable, dtype=bool)[low]
+        high, low, room = high[free], low[free], room[free]
+    # Shortest paths of 1 - w: from the virtual source V to each vertex at its own 1 - w, and along
+    # each pair from high to low at the tightest of its bounds (a sparse matrix would sum repeated
+    # entries, so they are reduced first). A zero-length edge would vanish from a sparse graph,
+    # hence the tiny length added.
+    tiny = 1e-12
+    key = high * (V + 1) + low
+    order = np.lexsort((room, key))
+    first = np.r_[True, key[order][1:] != key[order][:-1]]
+    high, low, room = high[order][first], low[order][first], room[order][first]
+    lengths = np.r_[room + tiny, 1.0 - weight + tiny]
+    graph = sparse.csr_matrix((lengths, (np.r_[high, np.full(V, V)], np.r_[low, np.arange(V)])), shape=(V + 1, V + 1))
+    raised = 1.0 - dijkstra(graph, directed=True, indices=V)[:V]
+    return np.clip(raised, weight, 1.0)

@@ -55,7 +55,8 @@ class TeethContact:
         The skin vertices, in the order of the displacements it will be given.
 
     Calling it with skin displacements ``(T, S, 3)`` and the jaw's angles ``(T,)`` changes the
-    displacements of lip vertices that went into the teeth, in place.
+    displacements of lip vertices that went into the teeth, in place, and returns which it pushed
+    (``(T, S) bool``).
     """
 
     def __init__(self, target: Target, parts: FaceParts, skin_ids):
@@ -86,9 +87,10 @@ class TeethContact:
             self.sets.append(_RigidSet(share, surface, cKDTree(surface.vertices), surface.vertex_normals, slack,
                                        at_rest, np.minimum(at_rest, 0.0)))
 
-    def __call__(self, skin_field: np.ndarray, angles) -> None:
+    def __call__(self, skin_field: np.ndarray, angles) -> np.ndarray:
+        pushed = np.zeros(skin_field.shape[:2], dtype=bool)
         if not self.sets:
-            return
+            return pushed
         h, a = self.parts.hinge, self.parts.axes[0]
         margin = 0.01 * self.reach
         for teeth in self.sets:
@@ -124,5 +126,7 @@ class TeethContact:
             push = np.zeros((p.shape[0] * p.shape[1], 3))
             push[close[inside]] = (allowed[inside] + margin - signed[inside])[:, None] * normal[inside]
             push = push.reshape(p.shape)
+            pushed[:, self.lips] |= (push != 0).any(axis=2)
             # Back to the posed frame: the push turns with the teeth.
             skin_field[:, self.lips] += push * cos + np.cross(a, push) * sin + a * (push @ a)[..., None] * (1 - cos)
+        return pushed

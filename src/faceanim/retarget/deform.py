@@ -22,6 +22,7 @@ from ..geometry.topology import open_edges, submesh
 from ..mpeg4 import ANGLE_UNIT, fap_table
 from ..mpeg4.fapstream import FapStream, held
 from ..parts import FaceParts
+from ..parts.jaw import unfolded_jaw_weight
 from ..target import Target
 from .contact import TeethContact
 from .transfer import SparseTransfer
@@ -99,6 +100,7 @@ class PartsDeformer:
         axis = parts.axes[0]
         self._turn_sin = np.cross(axis, r)  # (R - I) r = sin(t) a x r + (1 - cos(t)) a x (a x r)
         self._turn_cos = np.cross(axis, self._turn_sin)
+        self._skin_triangles = mesh.triangles[skin[mesh.triangles].all(axis=1)]
         self._bind_riders(mesh, skin_mesh)
         self.contact = TeethContact(target, parts, skin_ids)
         self.relaxer = FoldRelaxer(skin_mesh.vertices, skin_mesh.triangles) if relax else None
@@ -145,7 +147,8 @@ class PartsDeformer:
         """``(V,)`` the parts' jaw weight with the skin's share adjusted to the motion: at each control
         point on the skin, the share of the jaw's turn that best explains its displacements over all
         frames (least squares, within [0, 1]); the differences from the parts' weights spread over the
-        skin like the displacements (so far from the control points the parts' weights hold).
+        skin like the displacements (so far from the control points the parts' weights hold); last,
+        raised where the motion's widest opening would fold the skin (:meth:`unfolded`).
 
         Without this the residual after the turn is wherever the parts' weights guessed wrong, and
         between control points the skin falls back towards the guess: a crease at every control."""
@@ -163,7 +166,13 @@ class PartsDeformer:
         share = np.where(seen, along / np.where(seen, energy, 1.0), weight[controls])
         change = np.clip(share, 0.0, 1.0) - weight[controls]
         weight[self.skin_ids] = np.clip(weight[self.skin_ids] + self.spread.operator @ change, 0.0, 1.0)
-        return weight
+        return self.unfolded(weight, angles)
+
+    def unfolded(self, weight, angles) -> np.ndarray:
+        """``weight`` raised on the skin where the motion's widest opening (or furthest closing) would
+        fold it (:func:`~faceanim.parts.jaw.unfolded_jaw_weight`)."""
+        return unfolded_jaw_weight(self.rest, self._skin_triangles, weight, self.parts.hinge, self.parts.axes[0],
+                                   angles, movable=self.parts.mask("skin"))
 
     def __call__(self, displacements, angles, eyes=None, *, fit_weights: bool = True) -> np.ndarray:
         """Positions ``(T, V, 3)``, all at once (see :meth:`source` for a long motion)."""
@@ -177,7 +186,8 @@ class PartsDeformer:
         displacements = as_frames(displacements)
         angles = np.asarray(angles, dtype=np.float64)
         eyes = None if eyes is None else np.asarray(eyes, dtype=np.float64)
-        weight = self.fitted_jaw_weight(displacements, angles) if fit_weights else self.parts.jaw_weight
+        weight = (self.fitted_jaw_weight(displacements, angles) if fit_weights
+                  else self.unfolded(self.parts.jaw_weight, angles))
 
         def frames(start: int, stop: int) -> np.ndarray:
             at = slice(start, stop)
@@ -190,11 +200,25 @@ class PartsDeformer:
         controls = self.controls[self.on_skin]
         residual = displacements[:, self.on_skin] - moved[:, controls]
         skin_field = moved[:, self.skin_ids] + self.spread(residual)
-        if self.relaxer is not None:
-            relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field)
+        if self.relaxer is not None:  # the jaw's turn does not fold (its weight is unfolded): relax over it
+            turned = self.rest[self.skin_ids] + moved[:, self.skin_ids]
+            relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field, turned)
             skin_field = relaxed - self.rest[self.skin_ids]
-        # Last, so that nothing after it moves a lip back into the teeth.
-        self.contact(skin_field, angles)
+        pushed = self.contact(skin_field, angles)
+        for _ in range(_CONTACT_ROUNDS if self.relaxer is not None else 0):
+            # A push out of the teeth moves lip vertices one by one and can fold the skin between
+            # them: relax again around the pushed vertices, which stay where the push put them, then
+            # push out what that relaxation took back in.
+            again = np.flatnonzero(pushed.any(axis=1))
+            if not len(again):
+                break
+            relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field[again], turned[again], pushed[again])
+            field = relaxed - self.rest[self.skin_ids]
+            more = self.contact(field, angles[again])
+            skin_field[again] = field
+            if not more.any():
+                break
+            pushed[again] |= more
         moved[:, self.skin_ids] = skin_field
         if self._riders is not None:
             riders, corners, bary = self._riders
@@ -213,6 +237,7 @@ class PartsDeformer:
         return moved
 
 
+_CONTACT_ROUNDS = 4  # pushes out of the teeth and relaxations around them, taken in turn
 _FIT_CHUNK = 1024  # frames of the control points' motion read at once by the fits over all frames
 
 
