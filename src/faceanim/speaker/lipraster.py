@@ -11,9 +11,9 @@ lip probabilities). Two implementations draw exactly that:
   read bilinearly at the interpolated UV; no context, so it runs wherever numpy does.
 * :class:`GlLipRaster` (the tracker's default where a context can be made): moderngl on EGL (Mesa's
   software rasteriser on a CPU, the GPU where there is one), one float framebuffer, the textures in
-  one float texture array mixed in the fragment shader. It measured faster on the speech clips
-  (``benchmarks/clone_tracking.py``: 5.9-6.3 against 3.4-3.7 frames/s for the colour comparison on
-  a loaded 2-core machine).
+  one float texture array mixed in the fragment shader; triangles beside the box are not drawn. It
+  measured faster on the speech clips (``benchmarks/clone_tracking.py``: 15.0-16.8 against 5.8-6.5
+  frames/s for the colour comparison on a 2-core machine at a load of about 3).
 
 Both take vertices in box pixels (x right, y down, pixel ``(i, j)`` covering ``[j, j+1) x [i, i+1)``,
 sampled at its centre ``(j + 0.5, i + 0.5)``), texture coordinates ``uv`` in ``[0, 1]`` (``u`` along
