@@ -225,7 +225,7 @@ def _on_rim(surface: Mesh, found) -> np.ndarray:
     """``(N,) bool``: whether each closest point lies on the surface's border (a corner or an edge
     of the landing triangle that belongs to no other triangle). Landings on an edge or a corner have
     exactly zero barycentric weights elsewhere (:func:`closest_point_on_triangles` sets them so)."""
-    rim = open_edges(surface.triangles)
+    rim = surface._cached("open_edges", lambda: open_edges(surface.triangles))
     if not len(rim):
         return np.zeros(len(found.distances), dtype=bool)
     V = len(surface.vertices)

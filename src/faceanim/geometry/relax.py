@@ -101,16 +101,25 @@ class FoldRelaxer:
         residual = frame - base
         for _ in range(self.rounds):
             inside = np.flatnonzero(region)
-            outside = np.flatnonzero(~region)
             L = self._laplacian[inside]
-            filled = splu(L[:, inside].tocsc()).solve(-(L[:, outside] @ residual[outside]))
+            edge_values = residual.copy()
+            edge_values[inside] = 0.0
+            filled = splu(L[:, inside].tocsc()).solve(-(L @ edge_values))
             frame[inside] = base[inside] + filled
-            turned = self.turned(frame)
+            # Only triangles touching the region changed; the rest were checked above.
+            touching = np.flatnonzero(region[self.triangles].any(axis=1))
+            now = touching[self._turned_among(frame, touching)]
+            turned[touching] = False
+            turned[now] = True
             if not turned.any() or region.sum() >= self._largest:
                 break
             region |= self._grown(np.unique(self.triangles[turned]), 0)
             region = self._grown(np.flatnonzero(region), self.grow) & free
         return int(turned.sum())
+
+    def _turned_among(self, positions: np.ndarray, which: np.ndarray) -> np.ndarray:
+        v = positions[self.triangles[which]]
+        return (np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]) * self._rest_normals[which]).sum(axis=1) < 0
 
     def _grown(self, vertices: np.ndarray, rings: int) -> np.ndarray:
         mask = np.zeros(len(self.rest), dtype=bool)
