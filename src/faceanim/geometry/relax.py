@@ -78,13 +78,13 @@ class FoldRelaxer:
         self._laplacian = (L + sparse.diags(np.full(V, 1e-9 * max(abs(L.diagonal()).max(), 1e-300)))).tocsr()
         self._rest_normals = self._normals(self.rest)
 
-    def _normals(self, positions: np.ndarray) -> np.ndarray:
-        v = positions[self.triangles]
+    def _normals(self, positions: np.ndarray, which=slice(None)) -> np.ndarray:
+        v = positions[self.triangles[which]]
         return np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
 
     def turned(self, positions: np.ndarray) -> np.ndarray:
         """``(F,) bool``: the triangles turned over in one frame ``(V, 3)``."""
-        return (self._normals(positions) * self._rest_normals).sum(axis=1) < 0
+        return self._turned_among(positions, slice(None))
 
     def __call__(self, positions, base=None, pinned=None) -> tuple[np.ndarray, np.ndarray]:
         out = np.array(positions, dtype=np.float64)
@@ -120,9 +120,9 @@ class FoldRelaxer:
             region = self._grown(np.flatnonzero(region), self.grow) & free
         return int(turned.sum())
 
-    def _turned_among(self, positions: np.ndarray, which: np.ndarray) -> np.ndarray:
-        v = positions[self.triangles[which]]
-        return (np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]) * self._rest_normals[which]).sum(axis=1) < 0
+    def _turned_among(self, positions: np.ndarray, which) -> np.ndarray:
+        """Of the triangles ``which`` (ids or a slice), those turned over in ``positions (V, 3)``."""
+        return (self._normals(positions, which) * self._rest_normals[which]).sum(axis=1) < 0
 
     def _grown(self, vertices: np.ndarray, rings: int) -> np.ndarray:
         mask = np.zeros(len(self.rest), dtype=bool)

@@ -201,8 +201,8 @@ class PartsDeformer:
         residual = displacements[:, self.on_skin] - moved[:, controls]
         skin_field = moved[:, self.skin_ids] + self.spread(residual)
         if self.relaxer is not None:  # the jaw's turn does not fold (its weight is unfolded): relax over it
-            turned = self.rest[self.skin_ids] + moved[:, self.skin_ids]
-            relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field, turned)
+            jaw_only = self.rest[self.skin_ids] + moved[:, self.skin_ids]
+            relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field, jaw_only)
             skin_field = relaxed - self.rest[self.skin_ids]
         pushed = self.contact(skin_field, angles)
         for _ in range(_CONTACT_ROUNDS if self.relaxer is not None else 0):
@@ -212,7 +212,7 @@ class PartsDeformer:
             again = np.flatnonzero(pushed.any(axis=1))
             if not len(again):
                 break
-            relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field[again], turned[again], pushed[again])
+            relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field[again], jaw_only[again], pushed[again])
             field = relaxed - self.rest[self.skin_ids]
             more = self.contact(field, angles[again])
             skin_field[again] = field
