@@ -25,6 +25,7 @@ from faceanim.speaker.appearance import (
 from faceanim.speaker.camera import (
     fit_camera,
     fit_video_camera,
+    fit_video_camera_runs,
     from_rigid,
     moved,
     project,
@@ -37,6 +38,7 @@ from faceanim.speaker.colour import ColourModel, lip_and_skin
 from faceanim.speaker.texturing import (
     MAX_STATIC,
     MAX_TRIANGLES,
+    appearance_from_runs,
     build_appearance,
     lip_mask_uv,
     synthesis_triangles,
@@ -131,6 +133,53 @@ def test_the_video_camera_and_rigid_motion_are_recovered_from_a_synthetic_captur
     for got in (fit.rigid, rigid_of_pose(pose)):  # rotation vectors near a half turn may wrap: compare matrices
         assert np.allclose(from_rigid(got)[0], R, atol=1e-9) and np.allclose(from_rigid(got)[1], t, atol=1e-9)
     assert fit.median_px < 1e-6 and fit.worst_point_px < 1e-6
+
+
+def _in_runs(points, landmarks, size):
+    """``runs()`` of :func:`appearance_from_runs`: the arrays cut into runs of ``size`` frames."""
+    return lambda: ((start, points[start:start + size], landmarks[start:start + size])
+                    for start in range(0, len(points), size))
+
+
+def test_the_camera_fit_over_runs_of_frames_equals_the_held_one():
+    rng = np.random.default_rng(3)
+    T = 11
+    points = np.tile(canonical_face().vertices, (T, 1, 1)) + rng.normal(scale=0.02, size=(T, 468, 3))
+    rigid = np.tile(FACING, (T, 1)) + np.c_[rng.normal(scale=0.1, size=(T, 3)), rng.normal(size=(T, 3))]
+    R, t = from_rigid(rigid)
+    pose = np.tile(np.eye(4), (T, 1, 1))
+    pose[:, :3, :3], pose[:, :3, 3] = R, t
+    landmarks = project(CAMERA, moved(points, rigid)) + rng.normal(scale=1e-3, size=(T, 468, 2))
+    valid = np.ones(T, bool)
+    valid[4] = False
+    points[4] = np.nan
+    points[7, :30] = np.nan  # some points of a frame missing: the even spread counts finite pairs only
+    for frames, max_points in ((None, 20000), (np.arange(1, 10), 700)):  # every pair; every 5th or so
+        held = fit_video_camera(points, landmarks, pose, valid, 640, 480, frames=frames, max_points=max_points)
+        streamed = fit_video_camera_runs(_in_runs(points, landmarks, 3), pose, valid, 640, 480, frames=frames,
+                                         max_points=max_points)
+        assert np.allclose(streamed.camera, held.camera, rtol=0, atol=1e-12)
+        assert np.array_equal(streamed.rigid, held.rigid, equal_nan=True)
+        for name in ("median_px", "worst_frame_px", "worst_point_px"):
+            assert abs(getattr(streamed, name) - getattr(held, name)) < 1e-9
+
+
+def test_the_appearance_from_runs_of_frames_equals_the_held_one(clone):
+    model, appearance, fit, image = clone
+    _, points = synthetic_model()
+    T = len(points)
+    pose = np.tile(np.eye(4), (T, 1, 1))
+    pose[:, :3, :3], pose[:, :3, 3] = from_rigid(FACING)
+    landmarks = project(CAMERA, moved(points, np.tile(FACING, (T, 1))))
+    streamed, streamed_fit = appearance_from_runs(
+        model, names=landmark_names(468), runs=_in_runs(points, landmarks, 7), pose=pose, valid=np.ones(T, bool),
+        width=320, height=320, read_frames=lambda idx: [image for _ in idx])
+    assert np.array_equal(streamed.key_frames, appearance.key_frames)
+    assert np.abs(streamed.textures.astype(int) - appearance.textures.astype(int)).max() <= 1  # rounding
+    assert np.allclose(streamed.lip_textures, appearance.lip_textures, atol=1e-3)
+    assert np.allclose(streamed.camera, fit.camera, atol=1e-12)
+    assert np.allclose(streamed.key_parameters, appearance.key_parameters, atol=1e-9)
+    assert np.allclose(streamed_fit.rigid, fit.rigid, atol=1e-12)
 
 
 def test_camera_files_round_trip_and_refuse_what_is_not_3x4(tmp_path):
@@ -358,6 +407,19 @@ def test_speaker_textures_and_render_on_a_real_clip(tmp_path, capsys):
     appearance = read_appearance(model)
     assert appearance.key_frames.max() < 87 and len(set(appearance.key_frames.tolist())) == 3
     assert np.allclose(read_camera(tmp_path / "cam.txt"), appearance.camera)
+    # the job streams its capture; the same capture held whole in memory gives the same textures
+    from faceanim.inputs import captured_source
+    from faceanim.speakerclone import _frames_of
+
+    capture = captured_source(video, folder=tmp_path)
+    motion = capture.motion
+    held, _ = build_appearance(read_speaker(model), names=motion.names, points=motion.neutral + motion.displacements,
+                               landmarks=capture.landmarks[:][..., :2], pose=motion.pose, valid=motion.valid,
+                               width=capture.width, height=capture.height,
+                               read_frames=lambda idx: _frames_of(video, idx), frames=np.arange(87))
+    assert np.array_equal(held.key_frames, appearance.key_frames)
+    assert np.abs(held.textures.astype(int) - appearance.textures.astype(int)).max() <= 1
+    assert np.allclose(held.camera, appearance.camera, atol=1e-9)
     assert main(["speaker", "analyse", str(video), "--model", str(model), "-o", str(tmp_path / "a.fap"),
                  "--params-csv", str(tmp_path / "p.csv")]) == 0
     assert main(["speaker", "render", "--model", str(model), "--params", str(tmp_path / "p.csv"), "--motion",

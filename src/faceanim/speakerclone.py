@@ -130,13 +130,11 @@ def make_textures(video, output, *, model, frames=None, neutral=None, smoothing:
     ``motion_out`` (``.csv``) also write the camera and the rigid motion of every frame.
     Returns ``(appearance, camera_fit)``.
     """
-    from .capture.track import track_video
-    from .inputs import _report_gaps, motion_of_track
-    from .progress import as_progress
+    from .inputs import captured_source
     from .speaker import read_speaker
     from .speaker.appearance import write_appearance
     from .speaker.camera import write_camera
-    from .speaker.texturing import build_appearance
+    from .speaker.texturing import appearance_from_runs
     from .speech import parse_frames
 
     output = Path(output)
@@ -149,16 +147,19 @@ def make_textures(video, output, *, model, frames=None, neutral=None, smoothing:
     source = Path(video)
     if source.suffix.lower() == ".npz":
         raise InputError(f"{video}: speaker textures needs the video itself (its frames give the textures)")
-    recorded = track_video(source, progress=as_progress(progress))
-    _report_gaps(source, recorded.gaps())
-    motion = motion_of_track(recorded, neutral=neutral, smoothing=smoothing)
+    # the streamed capture (landmarks and head-frame points on disk, read back a run of frames at a time)
+    capture = captured_source(source, neutral=neutral, smoothing=smoothing, progress=progress, folder=output.parent)
+    motion = capture.motion
     chosen = np.arange(len(motion)) if frames is None else np.arange(*parse_frames(frames, len(motion)))
+
+    def runs():
+        for start, d in motion.chunks():
+            yield start, motion.neutral + d, capture.landmarks[start:start + len(d)][..., :2]
+
     try:
-        appearance, fit = build_appearance(
-            speaker, names=motion.names, points=motion.neutral + motion.displacements,
-            landmarks=recorded.landmarks[..., :2], pose=motion.pose, valid=motion.valid, width=recorded.width,
-            height=recorded.height,
-            read_frames=lambda indices: _frames_of(video, indices), frames=chosen)
+        appearance, fit = appearance_from_runs(
+            speaker, names=motion.names, runs=runs, pose=motion.pose, valid=motion.valid, width=capture.width,
+            height=capture.height, read_frames=lambda indices: _frames_of(video, indices), frames=chosen)
     except ValueError as exc:
         raise InputError(f"{video}: {exc}") from None
     from .atomic import output_group

@@ -31,8 +31,8 @@ from scipy.spatial.transform import Rotation
 from ..errors import FileFormatError, InputError
 from ..validation import as_array
 
-__all__ = ["fit_camera", "project", "to_rigid", "from_rigid", "rigid_of_pose", "fit_video_camera", "CameraFit",
-           "read_camera", "write_camera"]
+__all__ = ["fit_camera", "project", "to_rigid", "from_rigid", "rigid_of_pose", "fit_video_camera",
+           "fit_video_camera_runs", "CameraFit", "read_camera", "write_camera"]
 
 
 def project(camera, points) -> np.ndarray:
@@ -162,23 +162,60 @@ def fit_video_camera(points, landmarks, pose, valid, width: int, height: int, *,
     points = as_array(points, "points", shape=("T", "L", 3), finite=False)
     T, L, _ = points.shape
     landmarks = as_array(landmarks, "landmarks", shape=(T, L, 2), finite=False)
+    return fit_video_camera_runs(lambda: iter([(0, points, landmarks)]), pose, valid, width, height, frames=frames,
+                                 max_points=max_points)
+
+
+def fit_video_camera_runs(runs, pose, valid, width: int, height: int, *, frames=None,
+                          max_points: int = 20000) -> CameraFit:
+    """:func:`fit_video_camera` over a capture read in runs of frames, holding one run at a time (what
+    ``faceanim speaker textures`` does with a streamed capture); the same answer.
+
+    ``runs()`` gives an iterator of ``(start, points (n, L, 3), landmarks (n, L, 2))`` over the video's
+    frames in order; it is called three times (count the pairs, gather the fit's even spread of them,
+    measure the error)."""
+    pose = np.asarray(pose, dtype=np.float64)
     valid = np.asarray(valid, dtype=bool)
+    T = len(valid)
     rigid = np.full((T, 6), np.nan)
-    rigid[valid] = rigid_of_pose(np.asarray(pose)[valid])
+    rigid[valid] = rigid_of_pose(pose[valid])
     chosen = np.flatnonzero(valid) if frames is None else np.intersect1d(np.asarray(frames), np.flatnonzero(valid))
     if len(chosen) == 0:
         raise InputError("no frame with a face to fit the camera on")
-    X = moved(points[chosen], rigid[chosen])
-    x = landmarks[chosen]
-    ok = np.isfinite(X).all(axis=-1) & np.isfinite(x).all(axis=-1)
-    Xf, xf = X[ok], x[ok]
-    step = max(1, len(Xf) // max_points)
-    P = fit_camera(Xf[::step], xf[::step])
+    wanted = np.zeros(T, dtype=bool)
+    wanted[chosen] = True
+
+    def pairs():
+        """Per run: the chosen frames, their camera-space points, landmarks and which pairs are finite."""
+        for start, points, landmarks in runs():
+            at = np.flatnonzero(wanted[start:start + len(points)])
+            if len(at) == 0:
+                continue
+            X = moved(np.asarray(points, dtype=np.float64)[at], rigid[start + at])
+            x = np.asarray(landmarks, dtype=np.float64)[at, :, :2]
+            yield start + at, X, x, np.isfinite(X).all(axis=-1) & np.isfinite(x).all(axis=-1)
+
+    count = sum(int(ok.sum()) for _, _, _, ok in pairs())
+    step = max(1, count // max_points)
+    kept_X, kept_x, seen = [], [], 0
+    for _, X, x, ok in pairs():  # every step-th finite pair, in (frame, point) order
+        n = int(ok.sum())
+        take = (seen + np.arange(n)) % step == 0
+        kept_X.append(X[ok][take])
+        kept_x.append(x[ok][take])
+        seen += n
+    P = fit_camera(np.concatenate(kept_X), np.concatenate(kept_x))
     scale = np.array([width, height], dtype=np.float64)
-    error = np.linalg.norm((project(P, X) - x) * scale, axis=-1)
-    error[~ok] = np.nan
-    per_frame = np.nanmedian(error[ok.any(axis=1)], axis=1)  # a frame with no finite point has no error to report
-    return CameraFit(P, rigid, float(np.median(per_frame)), float(per_frame.max()), float(np.nanmax(error)))
+    per_frame, worst = [], np.nan
+    for _, X, x, ok in pairs():
+        error = np.linalg.norm((project(P, X) - x) * scale, axis=-1)
+        error[~ok] = np.nan
+        some = ok.any(axis=1)  # a frame with no finite point has no error to report
+        if some.any():
+            per_frame.append(np.nanmedian(error[some], axis=1))
+            worst = np.nanmax([worst, np.nanmax(error)])
+    per_frame = np.concatenate(per_frame)
+    return CameraFit(P, rigid, float(np.median(per_frame)), float(per_frame.max()), float(worst))
 
 
 def read_camera(path) -> np.ndarray:

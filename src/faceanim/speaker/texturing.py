@@ -29,7 +29,8 @@ from .camera import moved, project
 from .colour import ColourModel, lip_and_skin
 
 __all__ = ["synthesis_triangles", "texture_uv", "texel_map", "choose_key_frames", "key_texture", "uv_polygon_mask",
-           "lip_mask_uv", "lip_mask_frame", "build_appearance", "MAX_MOBILE", "MAX_STATIC", "MAX_TRIANGLES"]
+           "lip_mask_uv", "lip_mask_frame", "build_appearance", "appearance_from_runs", "MAX_MOBILE", "MAX_STATIC",
+           "MAX_TRIANGLES"]
 
 MAX_MOBILE, MAX_STATIC, MAX_TRIANGLES = 250, 200, 700  # the original's bounds for synthesis
 _MARGIN = 0.02  # of the box, around the mesh in UV
@@ -205,26 +206,48 @@ def build_appearance(model, *, names, points, landmarks, pose, valid, width: int
     fit : :class:`~faceanim.speaker.camera.CameraFit`
         The camera fit, with its rigid motion of every frame and its reprojection error.
     """
-    from .camera import fit_video_camera
+    points = np.asarray(points)
+    landmarks = np.asarray(landmarks)
+    return appearance_from_runs(model, names=names, runs=lambda: iter([(0, points, landmarks)]), pose=pose, valid=valid,
+                                width=width, height=height, read_frames=read_frames, frames=frames, size=size)
+
+
+def appearance_from_runs(model, *, names, runs, pose, valid, width: int, height: int, read_frames, frames=None,
+                         size: int = TEXTURE_SIZE) -> tuple[Appearance, object]:
+    """:func:`build_appearance` from a capture read in runs of frames, one run held at a time (``faceanim
+    speaker textures`` on a streamed capture: memory does not grow with the video's length beyond a
+    few numbers a frame); the same answer.
+
+    ``runs()`` gives an iterator of ``(start, points (n, L, 3), landmarks (n, L, 2))``, the capture's
+    head-frame points and tracked landmarks of frames ``start .. start + n``, over the video in order;
+    it is called a few times (the camera fit's passes, the landmark-based parameters). The other
+    arguments are :func:`build_appearance`'s."""
+    from .camera import fit_video_camera_runs
 
     everything = tuple(names)
-    if len(everything) != np.shape(points)[1]:
-        raise ValueError(f"names must name the capture's {np.shape(points)[1]} points, got {len(everything)}")
     mesh_names = model.names + model.static_names
     lookup = {n: i for i, n in enumerate(everything)}
     missing = [n for n in mesh_names if n not in lookup]
     if missing:
         raise ValueError(f"the capture lacks the model's points {', '.join(missing[:4])}")
     index = np.array([lookup[n] for n in mesh_names])
-    points = np.asarray(points)[:, index]
-    landmarks = np.asarray(landmarks)[:, index, :2]
-    T = len(points)
+
+    def mesh_runs():
+        for start, points, landmarks in runs():
+            if np.shape(points)[1] != len(everything):
+                raise ValueError(f"names must name the capture's {np.shape(points)[1]} points, got {len(everything)}")
+            yield start, np.asarray(points)[:, index], np.asarray(landmarks)[:, index, :2]
+
+    ok = np.asarray(valid, dtype=bool)
+    T = len(ok)
     frames = np.arange(T) if frames is None else np.asarray(frames)
-    fit = fit_video_camera(points, landmarks, pose, valid, width, height, frames=frames)
+    fit = fit_video_camera_runs(mesh_runs, pose, ok, width, height, frames=frames)
     P = len(model.names)
     parameters = np.full((T, model.parameter_count), np.nan)
-    ok = np.asarray(valid, dtype=bool)
-    parameters[ok] = model.fit_points(points[ok, :P] - model.neutral)
+    for start, points, _ in mesh_runs():
+        at = np.flatnonzero(ok[start:start + len(points)])
+        if len(at):
+            parameters[start + at] = model.fit_points(points[at, :P] - model.neutral)
     keys = choose_key_frames(model, parameters, frames)
     key_parameters = parameters[keys]
     key_points = posture_points(model, key_parameters)
