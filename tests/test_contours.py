@@ -111,3 +111,38 @@ def test_the_lips_sides_differ_between_triangulations_only_at_the_corners(ict_he
     assert (labels[band][~inside] == labels[0.0][~inside]).all()
     with pytest.raises(ValueError, match="corners must hold one non-negative float per opening"):
         opening_sides(face.mesh, tids, "ibug68", openings=mouth, corners=[0.1, 0.2])
+
+
+def test_band_coordinates_on_a_flat_lid_with_known_lines():
+    """A flat sheet facing +z: the lid line along y = 0 from x = 0 to 3, the brow along y = 2. ``u`` is the
+    place across the eye (x / 3), ``v`` the height between the lines (y / 2), exactly."""
+    from faceanim.geometry.mesh import Mesh
+    from faceanim.retarget.contours import _band_coordinates
+
+    xs, ys = np.meshgrid(np.linspace(-1, 4, 11), np.linspace(-1, 3, 9))
+    vertices = np.c_[xs.ravel(), ys.ravel(), np.zeros(xs.size)]
+    n = xs.shape[1]
+    quads = [(r * n + c, r * n + c + 1, (r + 1) * n + c + 1, (r + 1) * n + c)
+             for r in range(xs.shape[0] - 1) for c in range(n - 1)]
+    triangles = np.array([t for a, b, c, d in quads for t in ((a, b, c), (a, c, d))])
+    mesh = Mesh(vertices, triangles)
+    at = {(x, y): i for i, (x, y) in enumerate(zip(xs.ravel().round(3), ys.ravel().round(3), strict=True))}
+    lid = [np.array([at[(0.0, 0.0)], at[(0.5, 0.0)], at[(1.0, 0.0)]]), np.array([at[(1.0, 0.0)], at[(3.0, 0.0)]])]
+    brow = [np.array([at[(-0.5, 2.0)], at[(1.5, 2.0)], at[(3.5, 2.0)]])]
+    ids = np.array([at[(0.0, 0.0)], at[(3.0, 0.0)]])
+    u, v, front = _band_coordinates(mesh, ids, [lid, brow], (0, 1, 0, 1), np.array([0.0, 0.0, 1.0]))
+    assert np.allclose(u, vertices[:, 0] / 3) and np.allclose(v, vertices[:, 1] / 2) and front.all()
+
+
+def test_lid_bands_of_the_same_face_land_on_their_own_places(ict_head):
+    """The full head against its own face region: the lid skin placed by height between lid and brow lands
+    where it is, and none of it comes from the eye sockets' walls (which face forward too, 2 cm behind)."""
+    from faceanim.retarget.contours import lid_bands
+
+    h = ict_head
+    model = h["model"]
+    vertices, points = lid_bands(h["part"], h["face"].mesh, h["local"], h["face"].index_of[model.landmarks],
+                                 "ibug68")
+    ict = h["kept"][vertices]
+    assert len(ict) > 100 and (ict < FACE).all()
+    assert np.median(np.linalg.norm(points - model.neutral[ict], axis=1)) < 0.01  # cm
