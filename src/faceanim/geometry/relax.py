@@ -26,6 +26,9 @@ from .surface import cotangent_laplacian
 
 __all__ = ["FoldRelaxer"]
 
+_YIELD_RINGS = (1, 2, 4, 8)  # how far from a fold held by pins they yield, tried in turn
+_PASSES = 3  # fresh starts of a frame's relaxation
+
 
 class FoldRelaxer:
     """Relaxes turned-over triangles out of deformed copies of one mesh.
@@ -50,7 +53,10 @@ class FoldRelaxer:
     Calling it with positions ``(T, V, 3)`` (and optionally the base positions ``(T, V, 3)`` that do
     not fold, default the rest; and ``pinned (T, V) bool``, vertices kept where they are given, which
     the fills take as edge values) returns relaxed positions and, per frame, how many triangles stay
-    turned over.
+    turned over. With ``pins_yield=True`` a fold the pinned vertices hold in place (pinned corners
+    of their own, or a ring of pins around it that the neighbourhood cannot grow past) frees the pins
+    within 1, 2, 4 and then 8 rings of it, one step at a time, until it relaxes: for a caller whose
+    pins are a preference (a lip pushed out of the teeth) and for whom a fold is worse.
 
     Examples
     --------
@@ -86,13 +92,29 @@ class FoldRelaxer:
         """``(F,) bool``: the triangles turned over in one frame ``(V, 3)``."""
         return self._turned_among(positions, slice(None))
 
-    def __call__(self, positions, base=None, pinned=None) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, positions, base=None, pinned=None, *, pins_yield: bool = False) -> tuple[np.ndarray, np.ndarray]:
         out = np.array(positions, dtype=np.float64)
         left = np.zeros(len(out), dtype=np.int64)
         for t in range(len(out)):
-            left[t] = self._relax(out[t], self.rest if base is None else np.asarray(base[t], dtype=np.float64),
-                                  None if pinned is None else np.asarray(pinned[t], dtype=bool))
+            frame_base = self.rest if base is None else np.asarray(base[t], dtype=np.float64)
+            pins = None if pinned is None else np.array(pinned[t], dtype=bool)
+            left[t] = self._relaxed_again(out[t], frame_base, pins)
+            for rings in _YIELD_RINGS if pins_yield and pins is not None else ():
+                if not left[t] or not pins.any():
+                    break
+                pins &= ~self._grown(np.unique(self.triangles[self.turned(out[t])]), rings)
+                left[t] = self._relaxed_again(out[t], frame_base, pins)
         return out, left
+
+    def _relaxed_again(self, frame: np.ndarray, base: np.ndarray, pinned: np.ndarray | None) -> int:
+        """:meth:`_relax`, started afresh on what a neighbourhood grown to its cap left: a large fill
+        over the thin lips can fold them elsewhere, and what it leaves is then a small fold of its own."""
+        left = self._relax(frame, base, pinned)
+        for _ in range(_PASSES - 1):
+            if not left:
+                break
+            left = self._relax(frame, base, pinned)
+        return left
 
     def _relax(self, frame: np.ndarray, base: np.ndarray, pinned: np.ndarray | None) -> int:
         """Relax one frame in place; returns the triangles still turned over."""

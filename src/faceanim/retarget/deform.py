@@ -200,25 +200,13 @@ class PartsDeformer:
         controls = self.controls[self.on_skin]
         residual = displacements[:, self.on_skin] - moved[:, controls]
         skin_field = moved[:, self.skin_ids] + self.spread(residual)
-        if self.relaxer is not None:  # the jaw's turn does not fold (its weight is unfolded): relax over it
+        if self.relaxer is None:
+            self.contact(skin_field, angles)
+        else:  # the jaw's turn does not fold (its weight is unfolded): relax over it
             jaw_only = self.rest[self.skin_ids] + moved[:, self.skin_ids]
             relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field, jaw_only)
             skin_field = relaxed - self.rest[self.skin_ids]
-        pushed = self.contact(skin_field, angles)
-        for _ in range(_CONTACT_ROUNDS if self.relaxer is not None else 0):
-            # A push out of the teeth moves lip vertices one by one and can fold the skin between
-            # them: relax again around the pushed vertices, which stay where the push put them, then
-            # push out what that relaxation took back in.
-            again = np.flatnonzero(pushed.any(axis=1))
-            if not len(again):
-                break
-            relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field[again], jaw_only[again], pushed[again])
-            field = relaxed - self.rest[self.skin_ids]
-            more = self.contact(field, angles[again])
-            skin_field[again] = field
-            if not more.any():
-                break
-            pushed[again] |= more
+            self._kept_out_of_teeth(skin_field, jaw_only, angles)
         moved[:, self.skin_ids] = skin_field
         if self._riders is not None:
             riders, corners, bary = self._riders
@@ -236,8 +224,46 @@ class PartsDeformer:
         moved += self.rest
         return moved
 
+    def _kept_out_of_teeth(self, skin_field, jaw_only, angles) -> None:
+        """Pushes the lips in ``skin_field (T, S, 3)`` out of the teeth, in place, without folding the
+        skin: a push moves lip vertices one by one and can fold the skin between them, so pushes and
+        relaxations around the pushed vertices (held where the push put them) take turns."""
+        rest = self.rest[self.skin_ids]
+        pushed = self.contact(skin_field, angles)
+        for _ in range(_CONTACT_ROUNDS):
+            again = np.flatnonzero(pushed.any(axis=1))
+            if not len(again):
+                return
+            relaxed, _ = self.relaxer(rest + skin_field[again], jaw_only[again], pushed[again])
+            field = relaxed - rest
+            more = self.contact(field, angles[again])  # what the relaxation took back in
+            skin_field[again] = field
+            if not more.any():
+                break
+            pushed[again] |= more
+        again = np.flatnonzero(pushed.any(axis=1))
+        # Pushes that disagree (a lip caught between the upper and lower teeth at the corner is pushed
+        # both ways) can hold a fold among the pushed vertices themselves. A fold is worse than a lip
+        # a fraction of a millimetre into a tooth, so there the pins yield.
+        relaxed, _ = self.relaxer(rest + skin_field[again], jaw_only[again], pushed[again], pins_yield=True)
+        settled = relaxed - rest
+        # Then the pushes that fold nothing: a last push, taken back around every fold it makes.
+        field = settled.copy()
+        self.contact(field, angles[again])
+        for k in range(len(again)):
+            for _ in range(_TAKE_BACK_ROUNDS):
+                turned = self.relaxer.turned(rest + field[k])
+                if not turned.any():
+                    break
+                back = np.unique(self.relaxer.triangles[turned])
+                field[k, back] = settled[k, back]
+            else:
+                field[k] = settled[k]
+        skin_field[again] = field
+
 
 _CONTACT_ROUNDS = 4  # pushes out of the teeth and relaxations around them, taken in turn
+_TAKE_BACK_ROUNDS = 8  # the last push taken back around its folds, a ring at a time, before it is dropped
 _FIT_CHUNK = 1024  # frames of the control points' motion read at once by the fits over all frames
 
 
