@@ -2,8 +2,10 @@
 speaker's clone (:mod:`faceanim.speaker.analysis`), with the FAPs they give and a wireframe overlay.
 
 The video is tracked first (the streamed capture: landmarks on disk), for three things only: the
-head's rigid motion per frame (the capture's pose; with ``rigid`` the simplex corrects it), the
-video's camera (fitted on up to 60 of its frames, :func:`faceanim.speaker.camera.fit_video_camera`) and
+head's rigid motion per frame (the capture's pose registered to the frame's landmarks of the model's
+static points through the camera, :func:`faceanim.speaker.camera.register_rigid`; with ``rigid`` the
+simplex corrects it), the video's camera (fitted on up to 60 of its frames,
+:func:`faceanim.speaker.camera.fit_video_camera`) and
 the first frame's starting point (the landmark-based analysis, ``SpeakerModel.fit_points``; each later
 frame starts from the previous frame's answer, and the first after a stretch without a face from its
 own landmarks). Frames where the capture finds no face are not analysed: they are marked invalid and
@@ -118,7 +120,7 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     from .speaker import read_speaker
     from .speaker.analysis import CloneAnalyser, analysis_mesh, pose_matrix
     from .speaker.appearance import read_appearance
-    from .speaker.camera import fit_video_camera, rigid_of_pose, to_rigid
+    from .speaker.camera import fit_video_camera, register_rigid, rigid_of_pose, to_rigid
 
     output = Path(output)
     check_outputs({"-o": (output, ".csv"), "--fap": (fap, ".fap"), "--overlay": (overlay, ".mp4"),
@@ -166,6 +168,12 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     landmarks = np.stack([np.asarray(capture.landmarks[int(t)])[:len(names), :2] for t in chosen])
     camera = fit_video_camera(points, landmarks, motion.pose[chosen], np.ones(len(chosen), bool), capture.width,
                               capture.height).camera
+    static = motion.index(speaker.static_names)  # the head registered on the face less what speech moves
+    for begin, d in motion.chunks():
+        at = np.flatnonzero(usable[begin:begin + len(d)])
+        if len(at):
+            seen = np.asarray(capture.landmarks[begin:begin + len(d)])[at][:, static, :2]
+            head[begin + at] = register_rigid(camera, motion.neutral[static] + d[at][:, static], seen, head[begin + at])
     height = capture.height if field is None else len(range(0 if field == "top" else 1, capture.height, 2))
     poses = pose_matrix(head)
 
@@ -225,7 +233,7 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
                 restart = t == first or not usable[t - 1]  # after a stretch without a face: the landmarks
                 clock = time.perf_counter()
                 answer = analyser.analyse(image, start[t] if restart else previous, poses[t],
-                                          np.zeros(6) if restart else correction)
+                                          np.zeros(6) if restart else correction, reading=start[t])
                 seconds += time.perf_counter() - clock
                 previous, correction = answer.parameters, answer.correction
                 found[t], evaluations[t], cost[t] = answer.parameters, answer.evaluations, answer.cost

@@ -241,8 +241,9 @@ def appearance_from_runs(model, *, names, runs, pose, valid, width: int, height:
     ok = np.asarray(valid, dtype=bool)
     T = len(ok)
     frames = np.arange(T) if frames is None else np.asarray(frames)
-    fit = fit_video_camera_runs(mesh_runs, pose, ok, width, height, frames=frames)
     P = len(model.names)
+    fit = fit_video_camera_runs(mesh_runs, pose, ok, width, height, frames=frames,
+                                register=np.arange(P, len(mesh_names)))  # the head on the static points
     parameters = np.full((T, model.parameter_count), np.nan)
     for start, points, _ in mesh_runs():
         at = np.flatnonzero(ok[start:start + len(points)])
