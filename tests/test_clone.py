@@ -30,6 +30,7 @@ from faceanim.speaker.camera import (
     moved,
     project,
     read_camera,
+    register_rigid,
     rigid_of_pose,
     to_rigid,
     write_camera,
@@ -133,6 +134,29 @@ def test_the_video_camera_and_rigid_motion_are_recovered_from_a_synthetic_captur
     for got in (fit.rigid, rigid_of_pose(pose)):  # rotation vectors near a half turn may wrap: compare matrices
         assert np.allclose(from_rigid(got)[0], R, atol=1e-9) and np.allclose(from_rigid(got)[1], t, atol=1e-9)
     assert fit.median_px < 1e-6 and fit.worst_point_px < 1e-6
+
+
+def test_the_head_is_registered_on_the_landmarks_through_the_camera():
+    """A capture's pose a few degrees and millimetres off: register_rigid finds the motion that puts the
+    points on their landmarks, and the camera fit with ``register`` reports it and no error."""
+    rng = np.random.default_rng(4)
+    T = 5
+    points = np.tile(canonical_face().vertices, (T, 1, 1))
+    truth = np.tile(FACING, (T, 1)) + np.c_[rng.normal(scale=0.05, size=(T, 3)), rng.normal(size=(T, 3))]
+    landmarks = project(CAMERA, moved(points, truth))
+    off = truth + np.c_[rng.normal(scale=0.05, size=(T, 3)), rng.normal(scale=0.3, size=(T, 3))]
+    found = register_rigid(CAMERA, points, landmarks, off)
+    for got, want in zip(found, truth, strict=True):
+        assert np.allclose(from_rigid(got)[0], from_rigid(want)[0], atol=1e-8)
+        assert np.allclose(from_rigid(got)[1], from_rigid(want)[1], atol=1e-6)
+    pose = np.tile(np.eye(4), (T, 1, 1))
+    pose[:, :3, :3], pose[:, :3, 3] = from_rigid(off)
+    plain = fit_video_camera(points, landmarks, pose, np.ones(T, bool), 640, 480)
+    fit = fit_video_camera_runs(_in_runs(points, landmarks, 2), pose, np.ones(T, bool), 640, 480,
+                                register=np.arange(468))
+    assert plain.median_px > 1.0 and fit.median_px < plain.median_px / 4, (plain.median_px, fit.median_px)
+    nan = np.full((1, 6), np.nan)
+    assert np.isnan(register_rigid(CAMERA, points[:1], landmarks[:1], nan)).all()  # no start: left as it was
 
 
 def _in_runs(points, landmarks, size):

@@ -13,7 +13,7 @@ from faceanim.errors import InputError
 from faceanim.landmarks import landmark_names
 from faceanim.mpeg4 import Fapu
 from faceanim.speaker import read_speaker, write_speaker
-from faceanim.speaker.analysis import MAX_TRIANGLES, CloneAnalyser, analysis_mesh, pose_matrix
+from faceanim.speaker.analysis import DEFAULT_ANCHOR, MAX_TRIANGLES, CloneAnalyser, analysis_mesh, pose_matrix
 from faceanim.speaker.appearance import Appearance, influence_of, posture_points
 from faceanim.speaker.colour import ColourModel
 from faceanim.speaker.lipraster import NumpyLipRaster, prefilter, prefilter_block
@@ -387,6 +387,26 @@ def test_the_colour_adaptation_mask_is_centred_on_the_lips(clone):
     rows, columns = np.nonzero(mask)
     found = np.array([columns.mean() + 0.5, rows.mean() + 0.5])
     assert np.abs(found - ring).max() < 0.15, (found, ring)
+
+
+def test_the_landmark_reading_pulls_the_answer_as_its_weight_says(clone):
+    """The MAP pull toward the frame's reading: no weight, no change; an overwhelming weight, the
+    reading; the default weight with the true reading no worse than the image alone."""
+    model, appearance = clone
+    truth = np.array([0.6, -0.4, 0.3, 0.5, -0.2, 0.3])
+    frame = render_frame(model, appearance, truth, np.eye(4), 160, 160)
+    start = truth + 0.3
+    with _analyser(model, appearance, max_evals=150, anchor=0.0) as analyser:
+        alone = analyser.analyse(frame, start, np.eye(4))
+        unweighted = analyser.analyse(frame, start, np.eye(4), reading=np.zeros(6))
+    assert np.array_equal(alone.parameters, unweighted.parameters) and alone.cost == unweighted.cost
+    with _analyser(model, appearance, max_evals=150, anchor=1e4) as analyser:
+        held = analyser.analyse(frame, start, np.eye(4), reading=np.zeros(6))
+    assert np.abs(held.parameters).max() < 0.05
+    with _analyser(model, appearance, max_evals=150) as analyser:  # the default weight
+        assert analyser.anchor == DEFAULT_ANCHOR
+        read = analyser.analyse(frame, start, np.eye(4), reading=truth)
+    assert np.abs(read.parameters - truth).max() <= np.abs(alone.parameters - truth).max() + 1e-3
 
 
 def test_evaluations_never_exceed_the_cap(clone):
