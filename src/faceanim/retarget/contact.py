@@ -56,7 +56,8 @@ class TeethContact:
 
     Calling it with skin displacements ``(T, S, 3)`` and the jaw's angles ``(T,)`` changes the
     displacements of lip vertices that went into the teeth, in place, and returns which it pushed
-    (``(T, S) bool``).
+    (``(T, S) bool``). ``among (T, S) bool`` limits the check to those vertices (the ones that moved
+    since they were last found clear); by default every lip vertex is checked.
     """
 
     def __init__(self, target: Target, parts: FaceParts, skin_ids):
@@ -87,10 +88,12 @@ class TeethContact:
             self.sets.append(_RigidSet(share, surface, cKDTree(surface.vertices), surface.vertex_normals, slack,
                                        at_rest, np.minimum(at_rest, 0.0)))
 
-    def __call__(self, skin_field: np.ndarray, angles) -> np.ndarray:
+    def __call__(self, skin_field: np.ndarray, angles, among=None) -> np.ndarray:
         pushed = np.zeros(skin_field.shape[:2], dtype=bool)
         if not self.sets:
             return pushed
+        checked = np.ones(pushed.shape, dtype=bool) if among is None else np.asarray(among, dtype=bool)
+        checked = checked[:, self.lips].reshape(-1)
         h, a = self.parts.hinge, self.parts.axes[0]
         margin = 0.01 * self.reach
         for teeth in self.sets:
@@ -104,9 +107,9 @@ class TeethContact:
             # (in the set's frame) less than it stood clear at rest cannot be in; of the others, the
             # exact distance is taken only where the planes of the nearest tooth vertices say it is
             # behind the surface or within about an edge of it.
-            flat = local.reshape(-1, 3)
             moved = np.linalg.norm(local - self.lip_rest, axis=-1)
-            reachable = (moved >= teeth.at_rest - teeth.allowed - 1e-9).reshape(-1)
+            reachable = np.flatnonzero((moved >= teeth.at_rest - teeth.allowed - 1e-9).reshape(-1) & checked)
+            flat = local.reshape(-1, 3)[reachable]
             distance, nearest = teeth.tree.query(flat, k=_PLANES, distance_upper_bound=self.reach)
             near = np.isfinite(distance[:, 0])
             ahead = np.full(len(flat), np.inf)
@@ -115,7 +118,7 @@ class TeethContact:
             along = ((flat[near][:, None] - teeth.surface.vertices[np.where(valid, found, 0)])
                      * teeth.normals[np.where(valid, found, 0)]).sum(axis=2)
             ahead[near] = np.where(valid, along, np.inf).min(axis=1)
-            close = np.flatnonzero((ahead < teeth.slack) & reachable)
+            close = reachable[ahead < teeth.slack]
             if not len(close):
                 continue
             signed, normal = signed_offsets(local.reshape(-1, 3)[close], teeth.surface)

@@ -236,7 +236,8 @@ class PartsDeformer:
                 return
             relaxed, _ = self.relaxer(rest + skin_field[again], jaw_only[again], pushed[again])
             field = relaxed - rest
-            more = self.contact(field, angles[again])  # what the relaxation took back in
+            # What the relaxation took back in (only what it moved can have gone in).
+            more = self.contact(field, angles[again], among=(field != skin_field[again]).any(axis=2))
             skin_field[again] = field
             if not more.any():
                 break
@@ -249,7 +250,7 @@ class PartsDeformer:
         settled = relaxed - rest
         # Then the pushes that fold nothing: a last push, taken back around every fold it makes.
         field = settled.copy()
-        self.contact(field, angles[again])
+        self.contact(field, angles[again], among=(settled != skin_field[again]).any(axis=2))
         for k in range(len(again)):
             for _ in range(_TAKE_BACK_ROUNDS):
                 turned = self.relaxer.turned(rest + field[k])
