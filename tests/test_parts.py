@@ -332,6 +332,15 @@ def test_the_teeth_contact_leaves_no_lip_vertex_deeper_than_at_rest_whatever_it_
             local = h + r * np.cos(turn) + np.cross(a, r) * np.sin(turn) + np.outer(r @ a, a) * (1 - np.cos(turn))
             signed = signed_offsets(local, teeth.surface)[0]
             assert (signed >= teeth.allowed - 0.01).all(), (teeth.turn_share, t, (teeth.allowed - signed).max())
+    # Limited to some vertices (those a relaxation moved), it pushes exactly those of them it pushed
+    # unlimited, by the same amounts, and leaves the others where they were.
+    among = np.zeros(pushed.shape, dtype=bool)
+    among[:, skin_ids % 2 == 0] = True
+    limited = before.copy()
+    pushed_among = contact(limited, angles, among=among)
+    np.testing.assert_array_equal(pushed_among, pushed & among)
+    np.testing.assert_array_equal(limited[among], field[among])
+    np.testing.assert_array_equal(limited[~among], before[~among])
 
 
 def test_a_jaw_weight_that_would_fold_the_skin_is_raised_until_no_turn_up_to_the_widest_folds():
