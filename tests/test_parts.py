@@ -8,7 +8,7 @@ from conftest import shared
 
 from faceanim.errors import FileFormatError, InputError
 from faceanim.geometry import read_mesh
-from faceanim.geometry.quality import rigid_residual
+from faceanim.geometry.quality import rigid_residual, turned_over
 from faceanim.geometry.topology import component_labels, open_edges
 from faceanim.mpeg4 import fap_table
 from faceanim.mpeg4.fapstream import FapStream
@@ -217,6 +217,37 @@ def test_frames_in_chunks_give_what_all_frames_at_once_give(ict):
     in_twos = np.concatenate([frames(a, min(a + 2, 5)) for a in range(0, 5, 2)])
     np.testing.assert_array_equal(in_twos, frames(0, 5))
     np.testing.assert_array_equal(frames(3, 4), deformer(displacements, angles)[3:4])
+
+
+
+def test_lips_squeezed_into_the_teeth_leave_no_skin_triangle_turned_over(ict, monkeypatch):
+    """Lip controls pushed 0.4 cm back into the teeth, with noise, while the jaw closes past rest: the
+    pushes out of the upper and lower teeth disagree at the corners. The deformer leaves no skin
+    triangle turned over; with the pins held (not yielding to the folds they hold) 14 stay in one frame."""
+    from scipy.spatial import cKDTree
+
+    import faceanim.geometry.relax as relax
+    from faceanim.parts import INNER_LIP_POINTS
+
+    target, parts = ict
+    rest = target.mesh.vertices
+    ids = np.unique(target.ids(list(target.points)))
+    deformer = PartsDeformer(target, parts, ids)
+    angles = np.array([-0.05, -0.03, 0.0, 0.02])
+    displacements = deformer.jaw_turn(angles, ids) * parts.jaw_weight[ids][None, :, None]
+    lips = [n for n in target.points if n in INNER_LIP_POINTS or n in ("8.3", "8.4")]
+    width = np.linalg.norm(rest[target.points["8.3"]] - rest[target.points["8.4"]])
+    near = cKDTree(rest[target.ids(lips)]).query(rest[ids])[0] < 0.2 * width
+    rng = np.random.default_rng(11)
+    displacements[:, near] += -0.4 * parts.axes[2] + rng.normal(scale=0.15, size=(len(angles), near.sum(), 3))
+    skin = target.mesh.triangles[parts.mask("skin")[target.mesh.triangles].all(axis=1)]
+
+    def turned(positions):
+        return turned_over(rest, positions, skin).sum(axis=1)
+
+    assert turned(deformer(displacements, angles, fit_weights=False)).tolist() == [0, 0, 0, 0]
+    monkeypatch.setattr(relax, "_YIELD_RINGS", ())
+    assert turned(deformer(displacements, angles, fit_weights=False)).max() > 0
 
 
 def test_a_target_of_no_human_size_is_refused_before_any_work(tmp_path, capsys):

@@ -258,7 +258,7 @@ class PartsDeformer:
                     break
                 back = np.unique(self.relaxer.triangles[turned])
                 field[k, back] = settled[k, back]
-            else:
+            if self.relaxer.turned(rest + field[k]).any():  # still folding after every round: no last push
                 field[k] = settled[k]
         skin_field[again] = field
 
