@@ -320,6 +320,9 @@ def opening_rims(source: Mesh, target: Mesh, source_ids, target_ids, layout: str
 LID_BANDS: dict[str, tuple] = {"ibug68": ((4, 0, 36, 39), (6, 1, 45, 42)), "thesis16": ()}
 
 
+_NOSE_TIP = {"ibug68": 30}  # the control point the face's forward axis points towards
+
+
 def _face_forward(points: np.ndarray, tip: int) -> np.ndarray:
     """The face's forward axis: the normal of the control points' best plane, towards point ``tip``."""
     centre = points.mean(axis=0)
@@ -374,12 +377,12 @@ def lid_bands(source: Mesh, target: Mesh, source_ids, target_ids, layout: str, *
     through it would pin the wrong skin there at full weight. The relative height puts the same skin
     within about 0.1 cm (median), a weak but steady pull.
     """
-    tv = target.vertices if target_vertices is None else target_vertices
     from scipy.interpolate import LinearNDInterpolator
 
+    tv = target.vertices if target_vertices is None else target_vertices
     ids = (np.asarray(source_ids, dtype=np.int64), np.asarray(target_ids, dtype=np.int64))
     curves = (contour_paths(source, ids[0], layout), contour_paths(target, ids[1], layout))
-    forwards = [_face_forward(m.vertices[i], 30 if layout == "ibug68" else 0)
+    forwards = [_face_forward(m.vertices[i], _NOSE_TIP.get(layout, 0))
                 for m, i in zip((source, target), ids, strict=True)]
     # The face's own skin only (outside the eyes' and mouth's loops): a source with eye sockets has
     # forward-facing socket walls at the same place across the eye, 2 cm behind the lid.
