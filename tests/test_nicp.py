@@ -82,6 +82,27 @@ def test_inconsistent_landmarks_fail_with_the_residual():
         register_surface(source, target, source_landmarks=ids, target_points=wrong)
 
 
+def test_faint_landmarks_count_by_their_weight_in_the_convergence_test():
+    """Many faintly weighted landmarks that cannot all be reached (a soft pull, like the eyelids' skin placed by
+    relative height) do not fail a registration whose control landmarks hold; at full weight the same points do."""
+    source = dome()
+    target = source.with_vertices(bend(source.vertices))
+    ids = np.array([0, 23, 552, 575, 300])
+    soft = np.arange(24 * 12, 24 * 13)  # a row across the middle, pulled 0.1 off the surface
+    points = np.r_[target.vertices[ids], target.vertices[soft] + [0, 0, 0.1]]
+    landmarks = np.r_[ids, soft]
+    reg = register_surface(source, target, source_landmarks=landmarks, target_points=points,
+                           landmark_weights=np.r_[np.ones(len(ids)), np.full(len(soft), 0.001)])
+    reached = np.linalg.norm(reg.vertices[landmarks] - points, axis=1)
+    w = np.r_[np.ones(len(ids)), np.full(len(soft), 0.001)]
+    assert reg.landmark_error == pytest.approx(np.sqrt((w * reached ** 2).sum() / w.sum()))
+    radius = np.sqrt(((source.vertices - source.vertices.mean(0)) ** 2).sum(1).mean())
+    assert np.sqrt((reached ** 2).mean()) > 0.02 * radius  # unweighted, the soft row alone would fail the test
+    assert np.linalg.norm(reg.vertices[ids] - target.vertices[ids], axis=1).max() < 0.01  # the controls hold
+    with pytest.raises(InputError, match=r"landmarks are [0-9.e+-]+ from their places \(weighted RMS"):
+        register_surface(source, target, source_landmarks=landmarks, target_points=points)
+
+
 def test_options_are_checked():
     with pytest.raises(ValueError, match="stiffness must be a non-empty schedule"):
         NicpOptions(stiffness=())

@@ -62,7 +62,7 @@ class NicpOptions:
         Correspondences farther than this are refused.
     fit_tolerance, landmark_tolerance
         After the last stage: the median of the target's distances to the registered source, and
-        the RMS landmark error, above which the registration is declared failed.
+        the RMS landmark error (weighted by the landmarks' weights), above which the registration is declared failed.
     reverse_weight
         Weight of the reverse data term, relative to the forward one: each target vertex pulls the
         closest compatible point of the source surface (the same angle and distance tests, refused
@@ -108,8 +108,9 @@ class Registration:
     ``vertices (V, 3)`` the registered source positions (target units and frame), ``matched (V,)``
     which source vertices had an accepted correspondence in the last round, ``fit`` the median of
     the target vertices' distances to the registered source surface and
-    ``landmark_error`` the RMS distance of the registered source landmarks from their targets (both
-    in target units; 0 without landmarks), ``solves`` the number of sparse solves.
+    ``landmark_error`` the RMS distance of the registered source landmarks from their targets, each
+    weighted by its landmark weight (both in target units; 0 without landmarks), ``solves`` the number
+    of sparse solves.
     """
 
     vertices: np.ndarray
@@ -145,7 +146,7 @@ def register_surface(source: Mesh, target: Mesh, *, source_landmarks=(), target_
     Raises
     ------
     InputError
-        The registration did not reach the target: the fit or the landmark error after the last
+        The registration did not reach the target: the fit or the (weighted) landmark error after the last
         stage exceeds ``options.fit_tolerance`` / ``options.landmark_tolerance`` (times the
         source's RMS radius). The message gives the residuals reached.
 
@@ -232,12 +233,15 @@ def register_surface(source: Mesh, target: Mesh, *, source_landmarks=(), target_
     vertices = current * scale + origin
     registered = Mesh(vertices, source.triangles)
     fit = float(np.median(project_points(registered, target.vertices[np.unique(target.triangles)]).distances))
-    landmark_error = float(np.sqrt(((vertices[ids] - points) ** 2).sum(axis=1).mean())) if len(ids) else 0.0
+    # Weighted: a landmark given a faint weight is a soft pull the registration need not reach (the eyelids' skin
+    # placed by relative height, contours.lid_bands), and unweighted, many of them could fail a good registration.
+    landmark_error = float(np.sqrt((lw * ((vertices[ids] - points) ** 2).sum(axis=1)).sum() / lw.sum())) \
+        if len(ids) and lw.sum() > 0 else 0.0
     if fit > options.fit_tolerance * scale or landmark_error > options.landmark_tolerance * scale:
         raise InputError(
             f"the dense registration did not converge: half the target lies farther than {fit:.3g} of the registered "
-            f"source (tolerance {options.fit_tolerance * scale:.3g}) and the landmarks are {landmark_error:.3g} "
-            f"from their places (RMS; tolerance {options.landmark_tolerance * scale:.3g}), in the meshes' units; "
+            f"source (tolerance {options.fit_tolerance * scale:.3g}) and the landmarks are {landmark_error:.3g} from "
+            f"their places (weighted RMS; tolerance {options.landmark_tolerance * scale:.3g}), in the meshes' units; "
             + ("give corresponding landmarks to start from" if not len(ids) else
                "check that the control pairs mark the same places on both meshes"))
     return Registration(vertices, matched, fit, landmark_error, solves)
