@@ -15,13 +15,15 @@ settings (the comparison, the prior, the walls) were chosen on build frames only
     to 75% with a warm tint over the segment); the tracker (the default comparison, colour), its
     colour model adapted on the segment's first 3 frames and started at the first frame's known
     parameters, tracks them back, each frame from the previous frame's answer, from the image alone
-    (no landmark reading: its truth would be the reading). RMS error of each
+    (no landmark reading: its truth would be the reading; no pull toward the previous answer either,
+    which without a reading only makes the answer lag). RMS error of each
     parameter over the segment, in the model's units (the parameters have unit variance over the
     build frames) and divided by the parameter's spread on the segment (its standard deviation
     there, smaller: 0.25-1); the worst parameter per draw. Goal <= 0.1 of the spread.
 (b) **real**: ``track_speaker`` on the whole clip (the job ``faceanim speaker track``, GL where it
     runs: the head registered on the static points' landmarks, the answer pulled toward each frame's
-    landmark-based reading with ``DEFAULT_ANCHOR``); on each scored segment the tracked lip opening
+    landmark-based reading with ``DEFAULT_ANCHOR`` and toward the previous frame's answer with
+    ``DEFAULT_CONTINUITY``); on each scored segment the tracked lip opening
     (the inner lips' middles 2.2-2.3, vertical) and width (corners 8.3-8.4, horizontal) of the model's
     points against MediaPipe's same points
     (the capture's head-frame points), correlation (goal >= 0.9); and each parameter against the

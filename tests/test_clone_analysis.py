@@ -409,6 +409,47 @@ def test_the_landmark_reading_pulls_the_answer_as_its_weight_says(clone):
     assert np.abs(read.parameters - truth).max() <= np.abs(alone.parameters - truth).max() + 1e-3
 
 
+def test_the_previous_answer_pulls_as_the_continuity_weight_says(clone):
+    """The pull toward the previous frame's answer: no weight (or no previous answer), no change; an
+    overwhelming weight, the previous answer; with a reading too, the two pulls act as one toward
+    their weighted mean."""
+    model, appearance = clone
+    truth = np.array([0.6, -0.4, 0.3, 0.5, -0.2, 0.3])
+    frame = render_frame(model, appearance, truth, np.eye(4), 160, 160)
+    start, before = truth + 0.3, np.full(6, -0.5)
+    with _analyser(model, appearance, max_evals=150, anchor=0.0, continuity=0.0) as analyser:
+        alone = analyser.analyse(frame, start, np.eye(4))
+        unweighted = analyser.analyse(frame, start, np.eye(4), previous=before)
+    assert np.array_equal(alone.parameters, unweighted.parameters) and alone.cost == unweighted.cost
+    with _analyser(model, appearance, max_evals=150, anchor=0.0, continuity=1e4) as analyser:
+        held = analyser.analyse(frame, start, np.eye(4), previous=before)
+        free = analyser.analyse(frame, start, np.eye(4))
+    assert np.abs(held.parameters - before).max() < 0.05
+    assert np.array_equal(free.parameters, alone.parameters)  # no previous answer: no pull
+    with _analyser(model, appearance, max_evals=150, anchor=3e3, continuity=1e4) as analyser:
+        both = analyser.analyse(frame, start, np.eye(4), reading=np.zeros(6), previous=before)
+    assert np.abs(both.parameters - before * 1e4 / 1.3e4).max() < 0.05
+
+
+def test_gauss_newton_rounds_reach_the_truth_from_afar_within_the_cap(clone):
+    """Several damped Gauss-Newton rounds before the simplex: from a start 0.8 std off in every
+    parameter, the answer within 150 evaluations is closer than one round's (0.20 against 0.35 std)."""
+    model, appearance = clone
+    truth = np.array([0.6, -0.4, 0.3, 0.5, -0.2, 0.3])
+    frame = render_frame(model, appearance, truth, np.eye(4), 160, 160)
+    errors = {}
+    for rounds in (1, 6):
+        with _analyser(model, appearance, max_evals=150, rounds=rounds) as analyser:
+            answer = analyser.analyse(frame, truth + 0.8 * np.array([1, -1, 1, -1, 1, -1]), np.eye(4))
+        assert answer.evaluations <= 150
+        errors[rounds] = np.abs(answer.parameters - truth).max()
+    assert errors[6] < 0.75 * errors[1], errors
+    with pytest.raises(ValueError, match="rounds"):
+        CloneAnalyser(model, appearance, width=160, height=160, mouth_width=50, rounds=0)
+    with pytest.raises(ValueError, match="continuity"):
+        CloneAnalyser(model, appearance, width=160, height=160, mouth_width=50, continuity=-1)
+
+
 def test_evaluations_never_exceed_the_cap(clone):
     model, appearance = clone
     frame = render_frame(model, appearance, np.full(6, 0.8), np.eye(4), 160, 160)

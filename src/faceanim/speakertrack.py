@@ -8,7 +8,8 @@ simplex corrects it), the video's camera (fitted on up to 60 of its frames,
 :func:`faceanim.speaker.camera.fit_video_camera`) and
 the first frame's starting point (the landmark-based analysis, ``SpeakerModel.fit_points``; each later
 frame starts from the previous frame's answer, and the first after a stretch without a face from its
-own landmarks). Frames where the capture finds no face are not analysed: they are marked invalid and
+own landmarks); each frame's answer is pulled toward the frame's landmark-based reading and the previous
+frame's answer where the image is flat (``CloneAnalyser``'s ``anchor`` and ``continuity``). Frames where the capture finds no face are not analysed: they are marked invalid and
 hold the last analysed frame's parameters. The colour model is adapted to the video's lighting on
 its first 3 frames. Frames are then decoded one at a time; memory does not grow with the video.
 """
@@ -233,7 +234,8 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
                 restart = t == first or not usable[t - 1]  # after a stretch without a face: the landmarks
                 clock = time.perf_counter()
                 answer = analyser.analyse(image, start[t] if restart else previous, poses[t],
-                                          np.zeros(6) if restart else correction, reading=start[t])
+                                          np.zeros(6) if restart else correction, reading=start[t],
+                                          previous=None if restart else previous)
                 seconds += time.perf_counter() - clock
                 previous, correction = answer.parameters, answer.correction
                 found[t], evaluations[t], cost[t] = answer.parameters, answer.evaluations, answer.cost

@@ -84,6 +84,23 @@ DEFAULT_COLOUR_PRIOR = 0.0
 # the reading alike at the image's mean curvature; 3 would reach the goal on the build frames, but the
 # answer there mostly repeats the reading (the image decides only its sharpest directions).
 DEFAULT_ANCHOR = 1.0
+# The pull toward the previous frame's answer (``analyse(previous=)``), weighted as the reading's (this
+# share of the image's mean curvature); with both, the answer is pulled toward their weighted mean with
+# the sum of the weights. Chosen on the speech clips' build frames (tuning: 4 segments of each fold's
+# build frames, both clips, 16 segments, the reading at DEFAULT_ANCHOR): lip opening / width correlation
+# with MediaPipe, median (worst), at 0: 0.89 (0.73) / 0.93 (0.68); 0.5: 0.92 (0.77) / 0.95 (0.68);
+# 1: 0.93 (0.78) / 0.97 (0.69); 2: 0.91 (0.77) / 0.95 (0.68). At 1 the answer stays about as far from
+# the reading as at 0 (RMS difference over the reading's spread, per segment: 0.24-0.60 against
+# 0.12-0.68 on the first folds), where doubling the reading's weight instead (0.94 (0.83) / 0.95 (0.75))
+# brings it to 0.08-0.43: the gain is the frames' agreement with each other, not more of the reading.
+# Without a reading it only makes the answer lag (the clone's own frames tracked from the image alone:
+# worst parameter's error 0.35 -> 1.9 of its spread on speech_man), so ``speaker track`` gives both.
+DEFAULT_CONTINUITY = 1.0
+# The damped Gauss-Newton rounds before the simplex (:meth:`CloneAnalyser._shaped_simplex`). One: on the
+# clone's own frames more rounds came back closer from far starts (tests) but mixed on the speech clips'
+# draws (speech_man's first fold 0.35 / 0.17 of the spread at 1, 0.23 / 0.29 at 4; the woman's 0.11 /
+# 0.14 against 0.10 / 0.13).
+DEFAULT_ROUNDS = 1
 # The shaped simplex (CloneAnalyser._shaped_simplex): finite differences over this share of a first step;
 # the Gauss-Newton step's damping (Levenberg-Marquardt, on the Hessian's diagonal) and its longest move in
 # first steps; the cost each edge of the simplex raises, as a share of the start's.
@@ -99,6 +116,7 @@ _RANGE_MARGIN = 2.0
 _STEP_SHIFT = 0.5
 _MAX_SHIFT = 4.0
 _DAMPING = 0.1
+_LM_TRIES = 3  # a Gauss-Newton round's tries, each damped 4x more, before the rounds end
 _MAX_MOVE = 4.0
 _SIMPLEX_RISE = 0.5
 _UNCOVERED = -1.0
@@ -341,6 +359,11 @@ class CloneAnalyser:
     anchor : float, optional
         Weight of the pull toward the frame's landmark-based reading (:meth:`analyse`'s ``reading``),
         relative to the image's curvature (see :data:`DEFAULT_ANCHOR`); default :data:`DEFAULT_ANCHOR`.
+    rounds : int
+        Damped Gauss-Newton rounds before the simplex (colour, shaped simplex; :data:`DEFAULT_ROUNDS`).
+    continuity : float, optional
+        Weight of the pull toward the previous frame's answer (:meth:`analyse`'s ``previous``), as
+        ``anchor``'s (see :data:`DEFAULT_CONTINUITY`); default :data:`DEFAULT_CONTINUITY`.
     """
 
     def __init__(self, model: SpeakerModel, appearance, *, width: int, height: int, mouth_width: float,
@@ -348,7 +371,8 @@ class CloneAnalyser:
                  camera=None, prior: float | None = None, photometric: bool = True, blur: float = 0.0,
                  compare: str = "colour", precondition: bool = True, open_mouth: bool = False,
                  walls: float = DEFAULT_WALLS, box_pixels: int | None = None, xatol: float = 1e-3,
-                 fatol: float = 1e-7, shift: bool = False, anchor: float | None = None):
+                 fatol: float = 1e-7, shift: bool = False, anchor: float | None = None,
+                 rounds: int = DEFAULT_ROUNDS, continuity: float | None = None):
         if raster is not None and raster not in RASTERS:
             raise ValueError(f"raster must be None or one of {', '.join(RASTERS)}, got {raster!r}")
         if compare not in COMPARES:
@@ -369,9 +393,14 @@ class CloneAnalyser:
         self.photometric, self.blur, self.precondition = bool(photometric), float(blur), bool(precondition)
         self.walls, self.shift = float(walls), bool(shift)
         self.anchor = DEFAULT_ANCHOR if anchor is None else float(anchor)
-        self._reading = None
         if not np.isfinite(self.anchor) or self.anchor < 0:
             raise ValueError(f"anchor must be a finite weight >= 0, got {anchor!r}")
+        self.continuity = DEFAULT_CONTINUITY if continuity is None else float(continuity)
+        if not np.isfinite(self.continuity) or self.continuity < 0:
+            raise ValueError(f"continuity must be a finite weight >= 0, got {continuity!r}")
+        if isinstance(rounds, bool) or not isinstance(rounds, (int, np.integer)) or rounds < 1:
+            raise ValueError(f"rounds must be a whole number from 1, got {rounds!r}")
+        self.rounds = int(rounds)
         self._xatol, self._fatol = float(xatol), float(fatol)
         ranges = np.asarray(model.ranges, dtype=np.float64)
         self._ranges = (ranges[:, 0] - _RANGE_MARGIN, ranges[:, 1] + _RANGE_MARGIN)
@@ -638,50 +667,66 @@ class CloneAnalyser:
             h[-2:] = 0.0
         return h
 
-    def _shaped_simplex(self, x0: np.ndarray, evaluate, anchored=None) -> np.ndarray:
-        """The simplex's first vertices shaped by the cost around ``x0``: the colour residual's Jacobian
-        by finite differences (D + 1 evaluations) gives a Gauss-Newton Hessian ``H`` (the prior's
-        added); one damped Gauss-Newton step is tried (one evaluation) and the simplex starts from the
-        better point, its edges along ``H``'s eigenvectors, each as long as raises the cost by
-        :data:`_SIMPLEX_RISE` of the start's (between 0.02 and 1 of a first step). Nelder-Mead's moves
-        are affine, so a simplex shaped like the valley searches it as a round one searches a round
-        valley: correlated parameters (the jaw against the lower lip) no longer stall it.
+    def _shaped_simplex(self, x0: np.ndarray, evaluate, anchored=None, reading=None,
+                        strength: float = 0.0) -> np.ndarray:
+        """The simplex's first vertices shaped by the cost around ``x0``, after :attr:`rounds` damped
+        Gauss-Newton (Levenberg-Marquardt) steps: the colour residual's Jacobian by finite differences
+        (D evaluations a round, D + 1 the first) gives a Gauss-Newton Hessian ``H`` (the prior's, the
+        walls' and the reading's pull added); a damped step is tried (one evaluation; a step that does
+        not lower the cost is tried again more damped, up to :data:`_LM_TRIES` times, and the rounds end
+        there); the simplex then starts from the best point, its edges along the last ``H``'s
+        eigenvectors, each as long as raises the cost by :data:`_SIMPLEX_RISE` of the start's (between
+        0.02 and 1 of a first step). Nelder-Mead's moves are affine, so a simplex shaped like the valley
+        searches it as a round one searches a round valley: correlated parameters (the jaw against the
+        lower lip) no longer stall it.
 
-        With a reading (:meth:`analyse`), its pull's weight is set here from the measured curvature
-        (:data:`DEFAULT_ANCHOR`): ``anchored(weight, x0)`` sets it and returns the cost at ``x0`` with it;
-        the Gauss-Newton step and the simplex's shape then include it."""
-        D = len(x0)
+        With a ``reading`` (:meth:`analyse`), its pull's weight is set on the first round from the
+        measured curvature (:data:`DEFAULT_ANCHOR`): ``anchored(weight, x0)`` sets it and returns the
+        cost at ``x0`` with it; the steps and the simplex's shape then include it."""
+        D, K = len(x0), self.model.parameter_count
         steps = self._simplex(x0)[1:].diagonal() - x0  # the plain first steps: the differences' scale
-        f0, r0 = evaluate(x0, residual=True)
-        J = np.empty((len(r0), D))
-        for i in range(D):
-            x = x0.copy()
-            x[i] += _DIFFERENCE * steps[i]
-            J[:, i] = (evaluate(x, residual=True)[1] - r0) / (_DIFFERENCE * steps[i])
         prior = self._prior_hessian(D)
-        K = self.model.parameter_count
-        gradient = 2.0 * J.T @ r0 / self._scale
-        gradient[:K] += prior[:K] * x0[:K]
-        if self.rigid:
-            gradient[K:K + 6] += prior[K:K + 6] * x0[K:K + 6]
-        H = 2.0 * J.T @ J / self._scale + np.diag(prior)
-        if self._reading is not None and self.anchor > 0:  # the reading's pull, scaled by the image's curvature
-            weight = self.anchor * float(np.trace(H[:K, :K])) / K
-            f0 = anchored(weight, x0)
-            gradient[:K] += 2.0 * weight * (x0[:K] - self._reading)
-            H[:K, :K] += 2.0 * weight * np.eye(K)
-        damped = H + _DAMPING * np.diag(np.diag(H))
-        move = -np.linalg.lstsq(damped, gradient, rcond=None)[0]  # lstsq: a parameter the box does not see
-        reach = np.max(np.abs(move) / steps)
-        if reach > _MAX_MOVE:  # at most a few first steps in any coordinate
-            move *= _MAX_MOVE / reach
-        f1 = evaluate(x0 + move)
-        centre, value = (x0 + move, f1) if f1 < f0 else (x0, f0)
+        lo, hi = self._ranges
+        x, (value, r) = x0, evaluate(x0, residual=True)
+        weight, damping = 0.0, _DAMPING
+        for round_ in range(self.rounds):
+            J = np.empty((len(r), D))
+            for i in range(D):
+                y = x.copy()
+                y[i] += _DIFFERENCE * steps[i]
+                J[:, i] = (evaluate(y, residual=True)[1] - r) / (_DIFFERENCE * steps[i])
+            gradient = 2.0 * J.T @ r / self._scale + prior * x
+            H = 2.0 * J.T @ J / self._scale + np.diag(prior)
+            if round_ == 0 and reading is not None and strength > 0:  # the pull, scaled by the image's curvature
+                weight = strength * float(np.trace(H[:K, :K])) / K
+                value = anchored(weight, x)
+            a = x[:K]
+            outside = (a > hi) | (a < lo)  # the walls, quadratic beyond the ranges
+            gradient[:K] += 2.0 * self.walls * (np.maximum(a - hi, 0.0) - np.maximum(lo - a, 0.0))
+            H[:K, :K] += np.diag(2.0 * self.walls * outside)
+            if weight > 0:
+                gradient[:K] += 2.0 * weight * (a - reading)
+                H[:K, :K] += 2.0 * weight * np.eye(K)
+            improved = False
+            for _ in range(_LM_TRIES if self.rounds > 1 else 1):
+                damped = H + damping * np.diag(np.diag(H))
+                move = -np.linalg.lstsq(damped, gradient, rcond=None)[0]  # lstsq: a parameter the box does not see
+                reach = np.max(np.abs(move) / steps)
+                if reach > _MAX_MOVE:  # at most a few first steps in any coordinate
+                    move *= _MAX_MOVE / reach
+                tried, r_tried = evaluate(x + move, residual=True)
+                if tried < value:
+                    x, value, r, improved = x + move, tried, r_tried, True
+                    damping = max(damping / 3.0, 1e-3)
+                    break
+                damping *= 4.0
+            if not improved:
+                break
         e, V = np.linalg.eigh(H)
         scale = np.linalg.norm(V * steps[:, None], axis=0)  # a first step along each eigenvector
         length = np.sqrt(_SIMPLEX_RISE * value / np.maximum(e, 1e-12))
         length = np.clip(length, 0.02 * scale, scale)
-        return np.vstack([centre, centre + (V * length).T])
+        return np.vstack([x, x + (V * length).T])
 
     def _simplex(self, x0: np.ndarray) -> np.ndarray:
         K = self.model.parameter_count
@@ -703,7 +748,7 @@ class CloneAnalyser:
         return np.concatenate([parameters, *([correction] if self.rigid else []), *([shift] if self.shift else [])])
 
     def analyse(self, image, start, base_pose, correction=None, *, also=None, shift=None,
-                reading=None) -> FrameAnswer:
+                reading=None, previous=None) -> FrameAnswer:
         """One frame: the parameters (and with ``rigid`` the correction, with ``shift`` the clone's
         shift in the image) minimising the difference, from ``start (K,)`` (and ``correction (6,)``,
         ``shift (2,)``); the box placed at the start. ``also (M, K)``: other starts (the landmark-based
@@ -712,10 +757,18 @@ class CloneAnalyser:
         ``image``: ``(height, width, 3) uint8`` (one field's rows with ``field``); ``base_pose (4, 4)``:
         the tracker's head pose on that frame; ``reading (K,)``: the frame's landmark-based analysis (the
         tracker's own reading of the lips), toward which the answer is pulled where the image is flat
-        (:data:`DEFAULT_ANCHOR`; None: no pull)."""
+        (:data:`DEFAULT_ANCHOR`; None: no pull); ``previous (K,)``: the previous frame's answer, toward
+        which it is pulled likewise (:data:`DEFAULT_CONTINUITY`; None: no pull). With both, one pull
+        toward their weighted mean."""
         K = self.model.parameter_count
         start = as_array(start, "start", shape=(K,))
-        self._reading = None if reading is None else as_array(reading, "reading", shape=(K,))
+        reading = None if reading is None else as_array(reading, "reading", shape=(K,))
+        previous = None if previous is None else as_array(previous, "previous", shape=(K,))
+        # the pulls toward the reading and the previous answer, as one toward their weighted mean
+        shares = [(w, at) for w, at in ((self.anchor, reading), (self.continuity, previous))
+                  if at is not None and w > 0]
+        strength = sum(w for w, _ in shares)
+        reading = sum(w * at for w, at in shares) / strength if shares else None
         correction = np.zeros(6) if correction is None else as_array(correction, "correction", shape=(6,))
         shift = np.zeros(2) if shift is None or not self.shift else as_array(shift, "shift", shape=(2,))
         base_pose = as_array(base_pose, "base_pose", shape=(4, 4))
@@ -732,12 +785,12 @@ class CloneAnalyser:
         best = [np.inf, None]
         projector = self._projector(base_pose, origin)  # the pose fixed: the mesh's projection folded once
         seen = []  # (cost without the reading's pull, x): the best is chosen again when the pull is set
-        pull = [0.0 if self.precondition and self.compare == "colour" else self.anchor]
+        pull = [0.0 if self.precondition and self.compare == "colour" else strength]
 
         def pulled(x) -> float:
-            if self._reading is None or pull[0] == 0.0:
+            if reading is None or pull[0] == 0.0:
                 return 0.0
-            d = x[:K] - self._reading
+            d = x[:K] - reading
             return pull[0] * float(d @ d)
 
         def anchored(weight, x):
@@ -768,7 +821,7 @@ class CloneAnalyser:
                 value += self.prior * np.mean((c / _RIGID_STEPS) ** 2)
             if self.shift:  # the shift held within a few pixels of the tracker's place
                 value += self.walls * float(np.sum(np.maximum(np.abs(moved) - _MAX_SHIFT, 0.0) ** 2))
-            if self._reading is not None:
+            if reading is not None:
                 seen.append((value, x.copy()))
                 value += pulled(x)
             if value < best[0]:
@@ -785,7 +838,7 @@ class CloneAnalyser:
                 x0 = best[1].copy()
             simplex = self._simplex(x0)
             if self.compare == "colour" and self.precondition:
-                simplex = self._shaped_simplex(x0, evaluate, anchored)
+                simplex = self._shaped_simplex(x0, evaluate, anchored, reading, strength)
             minimize(evaluate, simplex[0], method="Nelder-Mead",
                      options={"initial_simplex": simplex, "maxfev": self.max_evals, "xatol": self._xatol,
                               "fatol": self._fatol})
