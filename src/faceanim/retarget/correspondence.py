@@ -58,6 +58,13 @@ RIM_WEIGHT = 0.5  # landmark weight of a point on an opening's rim (see contours
 #: itself only good to about 0.1 cm across identities, so the band is a weak pull, not a contour: at 0.1,
 #: seed 11's eyeBlink_R rose to 0.300 and seed 7's to 0.164 (from 0.087).
 LID_WEIGHT = 0.05
+# No band places the skin round the mouth. Tried (2026-11-23, tuning pairs only): each vertex placed by its
+# relative place between the outer lip line and a ring through the jaw line under the mouth and the nose base,
+# by angle read off the lip loop, as landmarks at weight 0.05. On the sigma-2.5 pairs 4 and 5 those relative
+# places put the same skin 0.41 / 0.39 cm apart (median; coordinates like the lid band's, across and up the upper
+# lip, 0.08-0.29 cm even on ICT's own triangulation), where the registration lands it within 0.23 / 0.19 cm:
+# seed 4 went 0.151 -> 0.148, seed 5 0.138 -> 0.149. That skin registered exactly would give 0.122 / 0.127
+# (benchmarks/results/transfer_ict_budget.md): no one region's registration error holds those pairs' medians.
 _cache: OrderedDict = OrderedDict()
 
 
