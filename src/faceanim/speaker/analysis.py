@@ -67,7 +67,7 @@ _BOX_PIXELS = 64  # the box's width in its own pixels (the frame is averaged dow
 # the benchmark reports. Colour: none; on the build frames its weight (0, 2e-4, 2e-3) left the lip
 # opening's and width's correlation with MediaPipe within 0.03 of each other, while any pull toward 0
 # biases the shallow parameters (lower lip, corners) by a third of a standard deviation on the clone's
-# own frames; the walls beyond the speaker's range (DEFAULT_WALLS) keep the simplex from wandering.
+# own frames.
 DEFAULT_PRIOR = 1e-2
 DEFAULT_COLOUR_PRIOR = 0.0
 # The pull toward the frame's own landmark-based reading (the tracker's reading, ``analyse(reading=)``):
@@ -109,8 +109,14 @@ _DIFFERENCE = 0.25
 # deviation and how far beyond the build frames' range (in standard deviations) they begin. On the build
 # frames of the speech clips (tuning) walls lifted the lip opening's correlation with MediaPipe from 0.38
 # to 0.75 (speech_woman; speech_man's width 0.66 to 0.78); beginning 2 std out rather than 1 changed
-# those by under 0.03 and pulls less on postures beyond the build frames' range.
-DEFAULT_WALLS = 0.05
+# those by under 0.03 and pulls less on postures beyond the build frames' range. That was before the
+# reading's and the previous answer's pulls: with them (DEFAULT_ANCHOR, DEFAULT_CONTINUITY) the walls
+# change no figure on the build frames (lip opening / width correlation identical to two decimals on the
+# 16 tuning segments; the clone's own frames drawn at build postures tracked to the same answers), and
+# they only pull postures beyond the range back, where the held-out frames of speech_man's last fold lie
+# (up to 10 std out): there, from each frame's own truth with 600 evaluations, the worst parameter came
+# back 2.18 of its spread off with walls and 0.81 without. Off by default; ``walls=`` gives them back.
+DEFAULT_WALLS = 0.0
 _RANGE_MARGIN = 2.0
 # The clone's shift in the image (shift=True): the simplex's first step and where its wall begins, box pixels.
 _STEP_SHIFT = 0.5
