@@ -450,6 +450,20 @@ def test_gauss_newton_rounds_reach_the_truth_from_afar_within_the_cap(clone):
         CloneAnalyser(model, appearance, width=160, height=160, mouth_width=50, continuity=-1)
 
 
+def test_a_posture_beyond_the_walls_is_found_without_them_and_pulled_back_with_them(clone):
+    """Rounding at 5 std, beyond the model's range (-2..2) and the walls' margin: by default (no walls)
+    the tracker finds it; walls pull it back toward the range."""
+    model, appearance = clone
+    truth = np.array([0.0, 0.0, 5.0, 0.0, 0.0, 0.0])
+    frame = render_frame(model, appearance, truth, np.eye(4), 160, 160)
+    with _analyser(model, appearance, max_evals=150) as analyser:
+        assert analyser.walls == 0.0
+        free = analyser.analyse(frame, truth, np.eye(4)).parameters
+    with _analyser(model, appearance, max_evals=150, walls=0.05) as analyser:
+        walled = analyser.analyse(frame, truth, np.eye(4)).parameters
+    assert abs(free[2] - 5.0) < 0.1 and walled[2] < 5.0 - 0.1, (free, walled)
+
+
 def test_evaluations_never_exceed_the_cap(clone):
     model, appearance = clone
     frame = render_frame(model, appearance, np.full(6, 0.8), np.eye(4), 160, 160)
