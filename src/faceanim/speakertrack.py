@@ -9,8 +9,9 @@ simplex corrects it), the video's camera (fitted on up to 60 of its frames,
 the first frame's starting point (the landmark-based analysis, ``SpeakerModel.fit_points``; each later
 frame starts from the previous frame's answer, and the first after a stretch without a face from its
 own landmarks); each frame's answer is pulled toward the frame's landmark-based reading and the previous
-frame's answer where the image is flat (``CloneAnalyser``'s ``anchor`` and ``continuity``). Frames where the capture finds no face are not analysed: they are marked invalid and
-hold the last analysed frame's parameters. The colour model is adapted to the video's lighting on
+frame's answer where the image is flat (``CloneAnalyser``'s ``anchor`` and ``continuity``). Frames
+where the capture finds no face are not analysed: they are marked invalid and hold the last analysed
+frame's parameters. The colour model is adapted to the video's lighting on
 its first 3 frames. Frames are then decoded one at a time; memory does not grow with the video.
 """
 
