@@ -220,30 +220,6 @@ def test_frames_in_chunks_give_what_all_frames_at_once_give(ict):
 
 
 
-def test_a_wide_opening_leaves_the_upper_lip_where_its_controls_are(ict):
-    """The jaw opens 26 degrees and every control follows it by the parts' weight, so the upper lip's
-    controls stay put. The skin of the upper lip stays within 2 mm of rest. (Turned by the weight
-    raised against folding, as it once was, it sagged 1 cm between its controls: a curtain over the
-    open mouth.)"""
-    from scipy.spatial import cKDTree
-
-    from faceanim.parts.faceparts import _UPPER_LIP
-
-    target, parts = ict
-    rest = target.mesh.vertices
-    ids = np.unique(target.ids([n for n in target.points if not n.startswith("mp")]))
-    deformer = PartsDeformer(target, parts, ids)
-    angles = np.array([0.0, 0.45])
-    displacements = deformer.jaw_turn(angles, ids) * parts.jaw_weight[ids][None, :, None]
-    upper = target.ids([n for n in _UPPER_LIP if n in target.points])
-    lip = parts.mask("skin") & (parts.jaw_weight < 0.05) & (cKDTree(rest[upper]).query(rest)[0] < 0.25)
-    assert lip.sum() > 100
-    raised = deformer.unfolded(parts.jaw_weight, angles)
-    assert raised[lip].max() > 0.2  # the raise does reach the upper lip
-    moved = deformer(displacements, angles, fit_weights=False)[1]
-    assert np.linalg.norm(moved[lip] - rest[lip], axis=1).max() < 0.2
-
-
 def test_lips_squeezed_into_the_teeth_leave_no_skin_triangle_turned_over(ict, monkeypatch):
     """Lip controls pushed 0.4 cm back into the teeth, with noise, while the jaw closes past rest: the
     pushes out of the upper and lower teeth disagree at the corners. The deformer leaves no skin
