@@ -28,7 +28,6 @@ __all__ = ["FoldRelaxer"]
 
 _YIELD_RINGS = (1, 2, 4, 8)  # how far from a fold held by pins they yield, tried in turn
 _PASSES = 3  # fresh starts of a frame's relaxation
-_GROW_FASTER = 4  # rounds of a fill after which its neighbourhood grows by one ring more
 
 
 class FoldRelaxer:
@@ -41,8 +40,7 @@ class FoldRelaxer:
     triangles : (F, 3) int64
         The triangles to keep from turning over (those of the surface that must not fold).
     rounds : int
-        At most this many fills per frame, the neighbourhood growing by ``grow`` rings after each
-        (and by ``grow`` more every four rounds, see ``_GROW_FASTER``).
+        At most this many fills per frame, the neighbourhood growing by ``grow`` rings after each.
     rings, grow : int
         The first neighbourhood is the folded triangles' vertices and ``rings`` rings around them.
         Kept small: a fill that takes in the mouth corner's control points flattens a smile (the
@@ -133,7 +131,7 @@ class FoldRelaxer:
         free = np.ones(len(frame), dtype=bool) if pinned is None else ~pinned
         region = self._grown(np.unique(self.triangles[turned]), self.rings) & free
         residual = frame - base
-        for done in range(self.rounds):
+        for _ in range(self.rounds):
             inside = np.flatnonzero(region)
             L = self._laplacian[inside]
             edge_values = residual.copy()
@@ -150,9 +148,7 @@ class FoldRelaxer:
             if not turned.any() or region.sum() >= self._largest:
                 break
             region |= self._grown(np.unique(self.triangles[turned]), 0)
-            # A fold that outlasts a few fills is a wide one: grow faster (a ring more every
-            # _GROW_FASTER rounds): it reaches its size in fewer factorisations of a large block.
-            region = self._grown(np.flatnonzero(region), self.grow * (1 + done // _GROW_FASTER)) & free
+            region = self._grown(np.flatnonzero(region), self.grow) & free
         return int(turned.sum())
 
     def _turned_among(self, positions: np.ndarray, which) -> np.ndarray:
