@@ -679,7 +679,7 @@ class CloneAnalyser:
             h[-2:] = 0.0
         return h
 
-    def _shaped_simplex(self, x0: np.ndarray, evaluate, anchored=None, reading=None,
+    def _shaped_simplex(self, x0: np.ndarray, evaluate, anchored=None, toward=None,
                         strength: float = 0.0) -> np.ndarray:
         """The simplex's first vertices shaped by the cost around ``x0``, after :attr:`rounds` damped
         Gauss-Newton (Levenberg-Marquardt) steps: the colour residual's Jacobian by finite differences
@@ -692,9 +692,10 @@ class CloneAnalyser:
         searches it as a round one searches a round valley: correlated parameters (the jaw against the
         lower lip) no longer stall it.
 
-        With a ``reading`` (:meth:`analyse`), its pull's weight is set on the first round from the
-        measured curvature (:data:`DEFAULT_ANCHOR`): ``anchored(weight, x0)`` sets it and returns the
-        cost at ``x0`` with it; the steps and the simplex's shape then include it."""
+        With ``toward`` (the weighted mean of :meth:`analyse`'s reading and previous answer), the pull's
+        weight is ``strength`` times the measured curvature, set on the first round
+        (:data:`DEFAULT_ANCHOR`): ``anchored(weight, x0)`` sets it and returns the cost at ``x0`` with
+        it; the steps and the simplex's shape then include it."""
         D, K = len(x0), self.model.parameter_count
         steps = self._simplex(x0)[1:].diagonal() - x0  # the plain first steps: the differences' scale
         prior = self._prior_hessian(D)
@@ -709,7 +710,7 @@ class CloneAnalyser:
                 J[:, i] = (evaluate(y, residual=True)[1] - r) / (_DIFFERENCE * steps[i])
             gradient = 2.0 * J.T @ r / self._scale + prior * x
             H = 2.0 * J.T @ J / self._scale + np.diag(prior)
-            if round_ == 0 and reading is not None and strength > 0:  # the pull, scaled by the image's curvature
+            if round_ == 0 and toward is not None and strength > 0:  # the pull, scaled by the image's curvature
                 weight = strength * float(np.trace(H[:K, :K])) / K
                 value = anchored(weight, x)
             a = x[:K]
@@ -717,7 +718,7 @@ class CloneAnalyser:
             gradient[:K] += 2.0 * self.walls * (np.maximum(a - hi, 0.0) - np.maximum(lo - a, 0.0))
             H[:K, :K] += np.diag(2.0 * self.walls * outside)
             if weight > 0:
-                gradient[:K] += 2.0 * weight * (a - reading)
+                gradient[:K] += 2.0 * weight * (a - toward)
                 H[:K, :K] += 2.0 * weight * np.eye(K)
             improved = False
             for _ in range(_LM_TRIES if self.rounds > 1 else 1):
@@ -780,7 +781,7 @@ class CloneAnalyser:
         shares = [(w, at) for w, at in ((self.anchor, reading), (self.continuity, previous))
                   if at is not None and w > 0]
         strength = sum(w for w, _ in shares)
-        reading = sum(w * at for w, at in shares) / strength if shares else None
+        toward = sum(w * at for w, at in shares) / strength if shares else None
         correction = np.zeros(6) if correction is None else as_array(correction, "correction", shape=(6,))
         shift = np.zeros(2) if shift is None or not self.shift else as_array(shift, "shift", shape=(2,))
         base_pose = as_array(base_pose, "base_pose", shape=(4, 4))
@@ -800,9 +801,9 @@ class CloneAnalyser:
         pull = [0.0 if self.precondition and self.compare == "colour" else strength]
 
         def pulled(x) -> float:
-            if reading is None or pull[0] == 0.0:
+            if toward is None or pull[0] == 0.0:
                 return 0.0
-            d = x[:K] - reading
+            d = x[:K] - toward
             return pull[0] * float(d @ d)
 
         def anchored(weight, x):
@@ -833,7 +834,7 @@ class CloneAnalyser:
                 value += self.prior * np.mean((c / _RIGID_STEPS) ** 2)
             if self.shift:  # the shift held within a few pixels of the tracker's place
                 value += self.walls * float(np.sum(np.maximum(np.abs(moved) - _MAX_SHIFT, 0.0) ** 2))
-            if reading is not None:
+            if toward is not None:
                 seen.append((value, x.copy()))
                 value += pulled(x)
             if value < best[0]:
@@ -850,7 +851,7 @@ class CloneAnalyser:
                 x0 = best[1].copy()
             simplex = self._simplex(x0)
             if self.compare == "colour" and self.precondition:
-                simplex = self._shaped_simplex(x0, evaluate, anchored, reading, strength)
+                simplex = self._shaped_simplex(x0, evaluate, anchored, toward, strength)
             minimize(evaluate, simplex[0], method="Nelder-Mead",
                      options={"initial_simplex": simplex, "maxfev": self.max_evals, "xatol": self._xatol,
                               "fatol": self._fatol})
