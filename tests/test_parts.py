@@ -405,3 +405,21 @@ def test_a_jaw_weight_that_would_fold_the_skin_is_raised_until_no_turn_up_to_the
                                   np.ones(len(rest)))
     kept = unfolded_jaw_weight(rest, tris, raw, hinge, axis, [0.6], movable=rest[:, 0] < 0.75)
     np.testing.assert_array_equal(kept[rest[:, 0] >= 0.75], 0.0)  # vertices not movable keep their weight
+
+
+def test_turned_vectors_is_the_rotation_about_the_axis():
+    """Known answer: scipy's rotation by the same axis and angles, per frame, vectors broadcast."""
+    from scipy.spatial.transform import Rotation
+
+    from faceanim.parts.jaw import turned_vectors
+
+    rng = np.random.default_rng(3)
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    angles = np.array([-0.3, 0.0, 0.45, np.pi / 2])
+    vectors = rng.normal(size=(4, 5, 3))
+    got = turned_vectors(vectors, axis, angles[:, None])
+    for t, angle in enumerate(angles):
+        expected = Rotation.from_rotvec(angle * axis).apply(vectors[t])
+        np.testing.assert_allclose(got[t], expected, atol=1e-12)
+    np.testing.assert_allclose(turned_vectors(got, axis, -angles[:, None]), vectors, atol=1e-12)

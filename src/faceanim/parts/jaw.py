@@ -15,10 +15,19 @@ from ..target import Target
 from .faceparts import _LOWER_LIP, _UPPER_LIP
 from .frame import _Frame, _smoothstep
 
-__all__ = ["unfolded_jaw_weight"]
+__all__ = ["unfolded_jaw_weight", "turned_vectors"]
 
 # How much of its rest length (along itself) a skin edge keeps, at least, under the jaw's turn alone.
 KEPT_ALONG = 0.3
+
+
+def turned_vectors(vectors, axis, angles) -> np.ndarray:
+    """``vectors (..., 3)`` turned about the unit ``axis`` by ``angles`` (radians, broadcast against the
+    vectors' leading axes), Rodrigues' formula: what the jaw's turn does to a vector."""
+    vectors = np.asarray(vectors, dtype=np.float64)
+    angles = np.asarray(angles, dtype=np.float64)[..., None]
+    cos, sin = np.cos(angles), np.sin(angles)
+    return vectors * cos + np.cross(axis, vectors) * sin + axis * (vectors @ axis)[..., None] * (1 - cos)
 
 
 def _skin_jaw_weight(mesh: Mesh, skin: np.ndarray, frame: _Frame, target: Target) -> np.ndarray:

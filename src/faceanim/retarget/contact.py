@@ -19,6 +19,7 @@ from ..geometry.mesh import Mesh
 from ..geometry.quality import signed_offsets
 from ..geometry.topology import submesh
 from ..parts import INNER_LIP_POINTS, FaceParts
+from ..parts.jaw import turned_vectors
 from ..target import Target
 
 __all__ = ["TeethContact"]
@@ -98,11 +99,8 @@ class TeethContact:
         margin = 0.01 * self.reach
         for teeth in self.sets:
             p = self.lip_rest[None] + skin_field[:, self.lips]  # (T, N, 3)
-            turn = teeth.turn_share * np.asarray(angles, dtype=np.float64)[:, None, None]
-            cos, sin = np.cos(turn), np.sin(turn)
-            r = p - h
-            # Into the set's rest frame: undo its turn about the hinge (Rodrigues, by -turn).
-            local = h + r * cos - np.cross(a, r) * sin + a * (r @ a)[..., None] * (1 - cos)
+            turn = teeth.turn_share * np.asarray(angles, dtype=np.float64)[:, None]
+            local = h + turned_vectors(p - h, a, -turn)  # into the set's rest frame: its turn undone
             # A signed distance changes no faster than the point moves, so a lip vertex that has moved
             # (in the set's frame) less than it stood clear at rest cannot be in; of the others, the
             # exact distance is taken only where the planes of the nearest tooth vertices say it is
@@ -131,5 +129,5 @@ class TeethContact:
             push = push.reshape(p.shape)
             pushed[:, self.lips] |= (push != 0).any(axis=2)
             # Back to the posed frame: the push turns with the teeth.
-            skin_field[:, self.lips] += push * cos + np.cross(a, push) * sin + a * (push @ a)[..., None] * (1 - cos)
+            skin_field[:, self.lips] += turned_vectors(push, a, turn)
         return pushed

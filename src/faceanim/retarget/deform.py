@@ -98,7 +98,8 @@ class PartsDeformer:
         self.spread = SparseTransfer(skin_mesh, index[ids[self.on_skin]], falloff=falloff)
         r = mesh.vertices - parts.hinge
         axis = parts.axes[0]
-        self._turn_sin = np.cross(axis, r)  # (R - I) r = sin(t) a x r + (1 - cos(t)) a x (a x r)
+        # turned_vectors' (R - I) r = sin(t) a x r + (1 - cos(t)) a x (a x r), its products kept per vertex
+        self._turn_sin = np.cross(axis, r)
         self._turn_cos = np.cross(axis, self._turn_sin)
         self._skin_triangles = mesh.triangles[skin[mesh.triangles].all(axis=1)]
         self._bind_riders(mesh, skin_mesh)
