@@ -146,3 +146,31 @@ def test_lid_bands_of_the_same_face_land_on_their_own_places(ict_head):
     ict = h["kept"][vertices]
     assert len(ict) > 100 and (ict < FACE).all()
     assert np.median(np.linalg.norm(points - model.neutral[ict], axis=1)) < 0.01  # cm
+
+
+def test_crease_line_finds_a_known_valley():
+    """Skin rising forward from the lid line with a fold (a Gaussian valley 0.12 cm wide) at a height that
+    rises across the eye, 0.7 to 0.9 cm: the crease found lies on it."""
+    from faceanim.retarget.contours import _crease_line
+
+    rng = np.random.default_rng(0)
+    u, rise = rng.uniform(0, 1, 20000), rng.uniform(0, 2, 20000)
+    fold = 0.7 + 0.2 * u
+    depth = 0.3 * rise - 0.15 * np.exp(-((rise - fold) ** 2) / (2 * 0.12 ** 2))
+    found = _crease_line(u, rise, depth, np.full(len(u), 2.0), np.ones(len(u), dtype=bool))
+    inner = (u > 0.05) & (u < 0.95)
+    assert np.abs(found[inner] - fold[inner]).max() < 0.05  # cm
+
+
+def test_lid_bands_between_brow_and_crease_of_the_same_face_land_on_their_own_places(ict_head):
+    """As above, with each lid vertex landed halfway between its place by height between lid and brow and its
+    place by height between lid and crease: on the same face both are where it is."""
+    from faceanim.retarget.contours import lid_bands
+
+    h = ict_head
+    model = h["model"]
+    vertices, points = lid_bands(h["part"], h["face"].mesh, h["local"], h["face"].index_of[model.landmarks],
+                                 "ibug68", upper="mean")
+    ict = h["kept"][vertices]
+    assert len(ict) > 100 and (ict < FACE).all()
+    assert np.median(np.linalg.norm(points - model.neutral[ict], axis=1)) < 0.02  # cm

@@ -22,7 +22,7 @@ from ..geometry.topology import component_labels, open_edges
 from ..mpeg4.multipie import THESIS_16
 
 __all__ = ["LAYOUTS", "LAYOUT_SIZES", "LANDMARK_WEIGHTS", "OPENINGS", "RIMMED", "SIDED", "SIDE_CORNERS",
-           "LID_BANDS", "contour_paths",
+           "LID_BANDS", "LID_UPPER_ENDS", "contour_paths",
            "lid_bands", "matched_contours", "opening_rims", "opening_sides"]
 
 # The jaw line (points 0-16) is left out: it is a silhouette, not a line on the skin, and the paths
@@ -320,6 +320,9 @@ def opening_rims(source: Mesh, target: Mesh, source_ids, target_ids, layout: str
 LID_BANDS: dict[str, tuple] = {"ibug68": ((4, 0, 36, 39), (6, 1, 45, 42)), "thesis16": ()}
 
 
+#: The upper ends a lid band can measure height to (:func:`lid_bands`).
+LID_UPPER_ENDS = ("brow", "crease", "mean")
+
 _NOSE_TIP = {"ibug68": 30}  # the control point the face's forward axis points towards
 
 
@@ -330,10 +333,12 @@ def _face_forward(points: np.ndarray, tip: int) -> np.ndarray:
     return forward if (points[tip] - centre) @ forward > 0 else -forward
 
 
-def _band_coordinates(mesh: Mesh, ids: np.ndarray, curves, band, forward) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _band_coordinates(mesh: Mesh, ids: np.ndarray, curves, band, forward, *, upper: str = "brow",
+                      usable=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every vertex's place in an upper-lid band: ``u`` across the eye (0 at the outer corner, 1 at the inner),
-    ``v`` up from the lid line (0) to the brow line (1), both measured in the face's plane, and whether the
-    vertex faces forward (its normal within 78 degrees of the face's forward axis)."""
+    ``v`` up from the lid line (0) to the brow line (1; with ``upper="crease"`` to the lid's crease found among
+    the ``usable`` vertices, :func:`_crease_line`), both measured in the face's plane, and whether the vertex
+    faces forward (its normal within 78 degrees of the face's forward axis)."""
     lid, brow, outer, inner = band
     corner = mesh.vertices[ids[outer]]
     across = mesh.vertices[ids[inner]] - corner
@@ -353,12 +358,56 @@ def _band_coordinates(mesh: Mesh, ids: np.ndarray, curves, band, forward) -> tup
         pu, ph = pts @ across / width, pts @ up
         order = np.argsort(pu)
         line[name] = np.interp(u, pu[order], ph[order])
-    v = (height - line["lid"]) / np.maximum(line["brow"] - line["lid"], 1e-9)
-    return u, v, mesh.vertex_normals @ forward > 0.2
+    front = mesh.vertex_normals @ forward > 0.2
+    top = line["brow"]
+    if upper == "crease":
+        usable = np.ones(len(u), dtype=bool) if usable is None else usable
+        top = _crease_line(u, height - line["lid"], rel @ forward, line["brow"] - line["lid"], front & usable)
+        top = top + line["lid"]
+    v = (height - line["lid"]) / np.maximum(top - line["lid"], 1e-9)
+    return u, v, front
+
+
+def _crease_line(u, rise, depth, span, usable, *, columns: int = 19, width=0.04,
+                 scale=0.25, step=0.05, search=(0.15, 0.85)):
+    """The upper lid's crease: per column across the eye (``u`` within ``width`` of each of ``columns`` evenly
+    spaced from 0.05 to 0.95), the height above the lid line of the most concave point of the skin's depth
+    profile at ``scale`` cm (the deepest valley below the chord between ``scale`` below and above), searched
+    within ``search`` of the lid-to-brow height ``span``; smoothed along the eye by a quadratic in ``u`` fitted
+    twice, the second time without columns more than 0.1 cm off the first. Returns each vertex's crease height
+    above the lid line."""
+    heights, at = [], []
+    for c in np.linspace(0.05, 0.95, columns):
+        sel = usable & (np.abs(u - c) < width)
+        if sel.sum() < 8:
+            continue
+        h, d = rise[sel], depth[sel]
+        order = np.argsort(h)
+        h, d = h[order], d[order]
+        top = float(np.median(span[sel]))
+        grid = np.arange(0.0, top + step, step)
+        bins = np.digitize(h, grid)
+        centres = np.array([h[bins == b].mean() for b in np.unique(bins)])
+        means = np.array([d[bins == b].mean() for b in np.unique(bins)])
+        g = np.arange(search[0] * top, search[1] * top, step / 2)
+        if len(centres) < 4 or not len(g):
+            continue
+        concave = (np.interp(g - scale, centres, means) + np.interp(g + scale, centres, means)) / 2 \
+            - np.interp(g, centres, means)
+        heights.append(g[int(np.argmax(concave))])
+        at.append(c)
+    at, heights = np.asarray(at), np.asarray(heights)
+    if len(at) < 3:
+        return span * 0.5
+    fit = np.polyfit(at, heights, 2)
+    good = np.abs(np.polyval(fit, at) - heights) < 0.1
+    if good.sum() >= 3:
+        fit = np.polyfit(at[good], heights[good], 2)
+    return np.polyval(fit, np.clip(u, at.min(), at.max()))
 
 
 def lid_bands(source: Mesh, target: Mesh, source_ids, target_ids, layout: str, *, target_vertices=None,
-              span=(0.1, 0.9), rise=(0.08, 0.3)) -> tuple[np.ndarray, np.ndarray]:
+              span=(0.1, 0.9), rise=(0.08, 0.3), upper: str = "brow") -> tuple[np.ndarray, np.ndarray]:
     """Source vertices on the upper lids' skin and where each lands on the target: the target's point at
     the same relative place between the lid line and the brow (``u`` across the eye, ``v`` up; see
     :func:`_band_coordinates`).
@@ -376,9 +425,25 @@ def lid_bands(source: Mesh, target: Mesh, source_ids, target_ids, layout: str, *
     apart, seed 4's left eye 0.3-0.4 cm, seed 11's right eye jumping between two valleys), so a contour
     through it would pin the wrong skin there at full weight. The relative height puts the same skin
     within about 0.1 cm (median), a weak but steady pull.
+
+    ``upper``: what the height is measured to (:data:`LID_UPPER_ENDS`): the brow line (the default), the
+    crease (:func:`_crease_line`), or ``"mean"``: each vertex chosen by its height between lid and brow lands
+    halfway between its place by that height and its place by its height between lid and crease. Measured as
+    the crease band end to end (2026-11-23, ``benchmarks/transfer_ict_lids.py``, tuning pairs only) and not
+    adopted: the crease is not the same skin across ICT-FaceKit's identities either. On seed 4 the source's
+    crease lies at 0.48-0.56 of the lid-to-brow height and the target's at 0.18-0.22, the true skin between
+    (brow too high, crease too low, so "mean" cancels); on seed 11 both put it too high. Clone 68,
+    median / worst (eyeBlink_L, eyeBlink_R), brow -> mean: seed 5 (sigma 2.5) 0.138 / 0.360 (0.201, 0.360)
+    -> 0.131 / 0.333 (0.190, 0.333); 4 (sigma 2.5) 0.151 / 0.391 (0.283, 0.162) -> 0.151 / 0.393 (0.236, 0.200);
+    7: 0.071 / 0.159 -> 0.072 / 0.159; 3 unchanged; but 11: 0.084 / 0.258 (0.191, 0.258) -> 0.089 / 0.294
+    (0.242, 0.294). The crease alone: seed 5 0.142 / 0.365, 11 0.098 / 0.274; the crease band over the whole
+    lid (``rise`` 0.1-0.9 of the crease's height) brought seed 5's eyeBlink_R to 0.293 but seed 4's eyeBlink_L
+    to 0.394.
     """
     from scipy.interpolate import LinearNDInterpolator
 
+    if upper not in LID_UPPER_ENDS:
+        raise ValueError(f"upper must be one of {', '.join(LID_UPPER_ENDS)}, got {upper!r}")
     tv = target.vertices if target_vertices is None else target_vertices
     ids = (np.asarray(source_ids, dtype=np.int64), np.asarray(target_ids, dtype=np.int64))
     curves = (contour_paths(source, ids[0], layout), contour_paths(target, ids[1], layout))
@@ -393,14 +458,25 @@ def lid_bands(source: Mesh, target: Mesh, source_ids, target_ids, layout: str, *
         on_skin &= used
     found_v, found_p = [], []
     for band in LID_BANDS[layout]:
-        su, sv, sfront = _band_coordinates(source, ids[0], curves[0], band, forwards[0])
-        tu, tvv, tfront = _band_coordinates(target, ids[1], curves[1], band, forwards[1])
-        pool = np.flatnonzero(skin[1] & tfront & (tu > span[0] - 0.1) & (tu < span[1] + 0.1)
-                              & (tvv > rise[0] - 0.1) & (tvv < rise[1] + 0.1))
+        frames = ["brow", "crease"] if upper == "mean" else [upper]
+        coords = [(_band_coordinates(source, ids[0], curves[0], band, forwards[0], upper=f, usable=skin[0]),
+                   _band_coordinates(target, ids[1], curves[1], band, forwards[1], upper=f, usable=skin[1]))
+                  for f in frames]
+        (su, sv, sfront), _ = coords[0]
         chosen = np.flatnonzero(skin[0] & sfront & (su > span[0]) & (su < span[1]) & (sv > rise[0]) & (sv < rise[1]))
-        if len(pool) < 4 or not len(chosen):
+        landings = []
+        for (su, sv, _), (tu, tvv, tfront) in coords:
+            if not len(chosen):
+                break
+            lo, hi = sv[chosen].min(), sv[chosen].max()
+            pool = np.flatnonzero(skin[1] & tfront & (tu > span[0] - 0.1) & (tu < span[1] + 0.1)
+                                  & (tvv > lo - 0.1) & (tvv < hi + 0.1))
+            if len(pool) < 4:
+                break
+            landings.append(LinearNDInterpolator(np.c_[tu[pool], tvv[pool]], tv[pool])(np.c_[su[chosen], sv[chosen]]))
+        if len(landings) < len(coords):
             continue
-        landing = LinearNDInterpolator(np.c_[tu[pool], tvv[pool]], tv[pool])(np.c_[su[chosen], sv[chosen]])
+        landing = np.mean(landings, axis=0)
         ok = np.isfinite(landing).all(axis=1)
         found_v.append(chosen[ok])
         found_p.append(landing[ok])
