@@ -465,10 +465,10 @@ def lid_bands(source: Mesh, target: Mesh, source_ids, target_ids, layout: str, *
         (su, sv, sfront), _ = coords[0]
         chosen = np.flatnonzero(skin[0] & sfront & (su > span[0]) & (su < span[1]) & (sv > rise[0]) & (sv < rise[1]))
         landings = []
-        for (su, sv, _), (tu, tvv, tfront) in coords:
+        for k, ((su, sv, _), (tu, tvv, tfront)) in enumerate(coords):
             if not len(chosen):
                 break
-            lo, hi = sv[chosen].min(), sv[chosen].max()
+            lo, hi = rise if k == 0 else (sv[chosen].min(), sv[chosen].max())  # the chosen's heights in this frame
             pool = np.flatnonzero(skin[1] & tfront & (tu > span[0] - 0.1) & (tu < span[1] + 0.1)
                                   & (tvv > lo - 0.1) & (tvv < hi + 0.1))
             if len(pool) < 4:
