@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import functools
+import json
+from importlib import resources
+
 import numpy as np
 
 from ..errors import InputError
@@ -17,7 +21,7 @@ from .smoothing import OneEuro, OneEuroFilter
 from .track import Track
 
 __all__ = ["head_frame", "head_frame_into", "settle", "displacements_from", "mouth_gap", "track_to_motion",
-           "restabilise", "rest_window", "brow_drive", "DEFAULT_SMOOTHING"]
+           "restabilise", "rest_window", "brow_drive", "view_features", "unview", "DEFAULT_SMOOTHING"]
 
 DEFAULT_SMOOTHING = OneEuro()
 
@@ -30,6 +34,11 @@ _BLOCK = 256  # frames fitted at once: the fits' temporaries stay a few MB howev
 # with full weights they pitched the head by 1.5-3.5 degrees on ICT renders of a still head, and the
 # whole face seemed to move (benchmarks/roundtrip_ict.py).
 _SKULL_SPREAD = 0.1
+# The head's turn is filtered as the face's points are, a point this far (cm) from the axis standing for
+# it: a rotation matrix's rows move at the turn's angular speed (rad/s), so its cut-off rises with
+# speed by ``beta * _TURN_RADIUS``. A fixed cut-off (1.5 Hz) let the pose lag a real turn by 4 frames
+# at 25 fps: 9 degrees behind a 20-degree yaw sweep on an ICT render (benchmarks/head_pose_ict.py).
+_TURN_RADIUS = 10.0
 
 
 def head_frame(track: Track):
@@ -94,6 +103,53 @@ def _restabilise_in_place(points, pose: np.ndarray, rest: np.ndarray, usable: np
         pose[frames] = pose[frames] @ to_frame
 
 
+@functools.cache
+def _view_table() -> np.ndarray:
+    """``(5, L * 3)``: cm per unit of each of :func:`view_features`, per landmark and axis, from
+    ``data/view_shifts.json`` (made by ``benchmarks/view_shifts.py``, which says how)."""
+    with resources.files(__package__).joinpath("data", "view_shifts.json").open() as handle:
+        return np.array(json.load(handle)["shift_cm_per_feature"], dtype=np.float64)
+
+
+def view_features(pose: np.ndarray) -> np.ndarray:
+    """``(T, 5)``: where the camera is seen from the head, for each ``pose (T, 4, 4)`` (head frame to
+    camera): the unit direction from the head to the camera in the head frame, its x and y (about the
+    sines of the yaw and the pitch the camera sees the face at), and their squares and product."""
+    linear = pose[:, :3, :3] / np.cbrt(np.linalg.det(pose[:, :3, :3]))[:, None, None]
+    towards = -pose[:, :3, 3] / np.linalg.norm(pose[:, :3, 3], axis=1, keepdims=True)
+    x, y = np.einsum("tji,tj->ti", linear, towards)[:, :2].T
+    return np.stack([x, y, x * x, y * y, x * y], axis=1)
+
+
+def unview(points, pose: np.ndarray, usable: np.ndarray, at_rest=None) -> None:
+    """Take out of head-frame ``points (T, L, 3)`` (an array or a store, rewritten a block at a time)
+    what the angle the camera sees the face at adds to them, against the ``at_rest`` frames' angle
+    (the median over the usable frames when None).
+
+    MediaPipe's reconstruction of a face depends on the angle it is seen at: on ICT renders of a still
+    face turned 20 degrees, the nose's base moved 2-3 mm in the head frame and the skull's landmarks
+    up to 4 mm RMS, so that a real head turn left part of itself in the face's expression (issue 17:
+    37% of a static point's motion on a speech clip followed the head angles). The shift is a
+    quadratic in :func:`view_features`, learned on still ICT faces turned (``benchmarks/view_shifts.py``).
+    """
+    table = _view_table()
+    features = view_features(pose)
+    chosen = usable if at_rest is None else np.isin(np.arange(len(pose)), at_rest) & usable
+    if not chosen.any():
+        return
+    calm = np.median(features[chosen], axis=0) if at_rest is None else features[chosen].mean(axis=0)
+    landmarks = min(points.shape[1], table.shape[1] // 3)
+    table = table.reshape(len(table), -1, 3)[:, :landmarks]
+    for start in range(0, len(points), _BLOCK):  # temporaries bounded by a block, not the video
+        stop = min(start + _BLOCK, len(points))
+        frames = start + np.flatnonzero(usable[start:stop])
+        if not frames.size:
+            continue
+        block = points[start:stop]
+        block[frames - start, :landmarks] -= np.einsum("tf,flc->tlc", features[frames] - calm, table)
+        points[start:stop] = block
+
+
 def head_frame_into(landmarks, usable: np.ndarray, times: np.ndarray, width: int, height: int, points, pose,
                     smoothing: OneEuro | None = DEFAULT_SMOOTHING) -> None:
     """Fill ``points (T, L, 3)`` (an array or a :class:`~faceanim.framestore.FrameStore` of the same
@@ -103,7 +159,7 @@ def head_frame_into(landmarks, usable: np.ndarray, times: np.ndarray, width: int
     point_filter = turn_filter = move_filter = None
     if smoothing is not None:
         point_filter, move_filter = OneEuroFilter(smoothing), OneEuroFilter(smoothing)
-        turn_filter = OneEuroFilter(OneEuro(smoothing.min_cutoff, 0.0, smoothing.d_cutoff))
+        turn_filter = OneEuroFilter(OneEuro(smoothing.min_cutoff, smoothing.beta * _TURN_RADIUS, smoothing.d_cutoff))
     for start in range(0, len(landmarks), _BLOCK):
         stop = min(start + _BLOCK, len(landmarks))
         raw, ok, when = landmarks[start:stop], usable[start:stop], times[start:stop]
@@ -134,9 +190,10 @@ def mouth_gap(points) -> np.ndarray:
 
 def settle(points, pose: np.ndarray, usable: np.ndarray, fps: float, *, neutral=None, neutral_points=None):
     """Choose the face at rest and refit the head frame to it: ``points`` (head frame, an array or a
-    store) and ``pose`` are rewritten in place (:func:`restabilise`); returns the rest ``(L, 3)`` and
-    its FAPU. ``neutral``, ``(start, end)`` frames, is found by :func:`relaxed_window` when None;
-    ``neutral_points`` measured elsewhere override it.
+    store) and ``pose`` are rewritten in place (:func:`restabilise`, then :func:`unview` against the
+    neutral frames); returns the rest ``(L, 3)`` and its FAPU. ``neutral``, ``(start, end)`` frames, is
+    found by :func:`relaxed_window` when None; ``neutral_points`` measured elsewhere override it (and
+    :func:`unview` is not made: the angle they were seen at is not known here).
 
     Raises
     ------
@@ -154,6 +211,8 @@ def settle(points, pose: np.ndarray, usable: np.ndarray, fps: float, *, neutral=
             raise InputError(f"the neutral frames {start}:{end} hold no tracked face")
         rest = points[start:end][chosen].mean(axis=0)
     _restabilise_in_place(points, pose, rest, usable)
+    if neutral_points is None:  # a neutral measured elsewhere was seen from an angle not known here
+        unview(points, pose, usable, start + np.flatnonzero(chosen))
     if neutral_points is None:
         rest = points[start:end][chosen].mean(axis=0)
     names = landmark_names(len(rest))
