@@ -20,6 +20,7 @@ can be scored without rendering and tracking again.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import tempfile
 from pathlib import Path
@@ -116,6 +117,20 @@ def turned_track(model, seed: int, cache: Path | None):
     if saved is not None:
         track.save(saved)
     return track
+
+
+@contextlib.contextmanager
+def earlier_capture():
+    """The capture as it was before the turn filter followed speed and before ``unview``, within."""
+    from faceanim.capture import headframe
+
+    table, radius = headframe._view_table, headframe._TURN_RADIUS
+    headframe._view_table = lambda: np.zeros((5, 478 * 3))
+    headframe._TURN_RADIUS = 0.0
+    try:
+        yield
+    finally:
+        headframe._view_table, headframe._TURN_RADIUS = table, radius
 
 
 def turn_score(track) -> tuple[float, float, float, float]:
@@ -302,17 +317,22 @@ def main(argv=None) -> int:
     turned = {}
     for seed, use in seeds:
         try:
-            row = turn_score(turned_track(model, seed, args.cache))
+            track = turned_track(model, seed, args.cache)
         except InputError as exc:
             lines.append(f"| {seed} | {use} | refused: {exc} | | | |")
             continue
+        row = turn_score(track)
         turned.setdefault(use, []).append(row)
+        with earlier_capture():
+            turned.setdefault(use + ", before", []).append(turn_score(track))
         lines.append(f"| {seed} | {use} | {row[1]:.1f} | " + " | ".join(f"{v:.2f}" for v in (row[0], *row[2:])) + " |")
         print(lines[-1], flush=True)
     for use, rows in turned.items():
         rows = np.array(rows)
         lines.append(f"| **{use}: median (worst)** | {len(rows)} pairs | | "
                      + " | ".join(f"{np.median(rows[:, k]):.2f} ({rows[:, k].max():.2f})" for k in (0, 2, 3)) + " |")
+    lines += ["", "*before*: the capture as it was before issue 16's head-pose work (the turn filtered at a fixed "
+              "1.5 Hz cut-off, nothing taken out for the view: `earlier_capture`)."]
     for use in ("tuning", "reporting"):
         if not any(u == use for u, _ in found):
             continue
