@@ -220,10 +220,35 @@ def test_frames_in_chunks_give_what_all_frames_at_once_give(ict):
 
 
 
+def test_a_wide_opening_leaves_the_upper_lip_where_its_controls_are(ict):
+    """The jaw opens 26 degrees and every control follows it by the parts' weight, so the upper lip's
+    controls stay put. The skin of the upper lip stays within 2 mm of rest. (Turned by the weight
+    raised against folding, as it once was, it sagged 1 cm between its controls: a curtain over the
+    open mouth.)"""
+    from scipy.spatial import cKDTree
+
+    from faceanim.parts.faceparts import _UPPER_LIP
+
+    target, parts = ict
+    rest = target.mesh.vertices
+    ids = np.unique(target.ids([n for n in target.points if not n.startswith("mp")]))
+    deformer = PartsDeformer(target, parts, ids)
+    angles = np.array([0.0, 0.45])
+    displacements = deformer.jaw_turn(angles, ids) * parts.jaw_weight[ids][None, :, None]
+    upper = target.ids([n for n in _UPPER_LIP if n in target.points])
+    lip = parts.mask("skin") & (parts.jaw_weight < 0.05) & (cKDTree(rest[upper]).query(rest)[0] < 0.25)
+    assert lip.sum() > 100
+    raised = deformer.unfolded(parts.jaw_weight, angles)
+    assert raised[lip].max() > 0.2  # the raise does reach the upper lip
+    moved = deformer(displacements, angles, fit_weights=False)[1]
+    assert np.linalg.norm(moved[lip] - rest[lip], axis=1).max() < 0.2
+
+
 def test_lips_squeezed_into_the_teeth_leave_no_skin_triangle_turned_over(ict, monkeypatch):
     """Lip controls pushed 0.4 cm back into the teeth, with noise, while the jaw closes past rest: the
     pushes out of the upper and lower teeth disagree at the corners. The deformer leaves no skin
-    triangle turned over; with the pins held (not yielding to the folds they hold) 14 stay in one frame."""
+    triangle turned over, with the teeth cover or by the pushes alone; with the pins held (not
+    yielding to the folds they hold) and no cover, folds stay."""
     from scipy.spatial import cKDTree
 
     import faceanim.geometry.relax as relax
@@ -245,6 +270,10 @@ def test_lips_squeezed_into_the_teeth_leave_no_skin_triangle_turned_over(ict, mo
     def turned(positions):
         return turned_over(rest, positions, skin).sum(axis=1)
 
+    assert turned(deformer(displacements, angles, fit_weights=False)).tolist() == [0, 0, 0, 0]
+    # Without the teeth cover (which puts lips carried behind the teeth back on the jaw's turn) the
+    # pushes alone must mend it: with the pins held, folds stay.
+    monkeypatch.setattr(deformer, "cover", lambda field, angles: np.zeros(field.shape[:2], dtype=bool))
     assert turned(deformer(displacements, angles, fit_weights=False)).tolist() == [0, 0, 0, 0]
     monkeypatch.setattr(relax, "_YIELD_RINGS", ())
     assert turned(deformer(displacements, angles, fit_weights=False)).max() > 0
@@ -423,3 +452,67 @@ def test_turned_vectors_is_the_rotation_about_the_axis():
         expected = Rotation.from_rotvec(angle * axis).apply(vectors[t])
         np.testing.assert_allclose(got[t], expected, atol=1e-12)
     np.testing.assert_allclose(turned_vectors(got, axis, -angles[:, None]), vectors, atol=1e-12)
+
+
+def test_teeth_cover_sees_skin_carried_behind_the_teeth(ict):
+    """The skin covering the lower teeth at rest, moved 1.5 cm back (through them): the teeth are ahead
+    of most of it; moved 1 cm forward, or left at rest, of none."""
+    from faceanim.retarget.contact import TeethCover
+
+    target, parts = ict
+    skin_ids = np.flatnonzero(parts.mask("skin"))
+    cover = TeethCover(target, parts, skin_ids)
+    lower = [s for s in cover.sets if s[0] == 1.0]
+    assert len(lower) == 1
+    covering = lower[0][2]
+    assert len(covering) > 200
+    field = np.zeros((3, len(skin_ids), 3))
+    field[1, covering] = -1.5 * parts.axes[2]
+    field[2, covering] = 1.0 * parts.axes[2]
+    hidden = cover(field, np.zeros(3))
+    assert not hidden[0].any() and not hidden[2].any()
+    assert hidden[1, covering].mean() > 0.8
+
+
+def test_skin_carried_behind_the_lower_teeth_is_put_back_in_front(ict):
+    """d6 onto ICT, frame 789, in small: the skin below the lower lip, interpolated between a lip that
+    follows the jaw only partly and a chin that follows it fully, ended up behind the lower teeth,
+    which showed through it. Here the skin over the chin's teeth is carried 1.5 cm back, jaw at rest:
+    after the deformer's cover none of it has a tooth ahead of it, it is back on the jaw's turn (here
+    the rest) where it was hidden, and no skin triangle is turned over."""
+    target, parts = ict
+    rest = target.mesh.vertices
+    ids = np.unique(target.ids([n for n in target.points if not n.startswith("mp")]))
+    deformer = PartsDeformer(target, parts, ids)
+    skin = deformer.skin_ids
+    lower = [s for s in deformer.cover.sets if s[0] == 1.0][0]
+    below_lip = lower[2][(rest[skin[lower[2]]] - rest[target.points["8.2"]]) @ parts.axes[1] < 0]
+    assert len(below_lip) > 50
+    field = np.zeros((1, len(skin), 3))
+    field[0, below_lip] = -1.5 * parts.axes[2]
+    angles = np.zeros(1)
+    hidden = deformer.cover(field, angles)
+    assert hidden.sum() > 40
+    deformer._kept_in_front_of_teeth(field, rest[skin][None].copy(), angles)
+    assert not deformer.cover(field, angles).any()
+    assert np.abs(field[0, hidden[0]]).max() < 1e-9
+    skin_triangles = target.mesh.triangles[parts.mask("skin")[target.mesh.triangles].all(axis=1)]
+    positions = rest[None].copy()
+    positions[0, skin] += field[0]
+    assert not turned_over(rest, positions, skin_triangles).any()
+
+
+def test_sight_lines_through_a_slab_give_how_far_its_front_is():
+    """A 1 x 1 x 0.3 box seen along z: from behind it its front face is 1.15 ahead, from inside 0.15,
+    from in front or beside it nothing; looking back from in front, the front face is 0.85 behind."""
+    import trimesh
+
+    from faceanim.geometry.mesh import Mesh
+    from faceanim.retarget.contact import SightLines
+
+    box = trimesh.creation.box(extents=(1.0, 1.0, 0.3))
+    sight = SightLines(Mesh(np.asarray(box.vertices, dtype=np.float64), np.asarray(box.faces)), np.eye(3))
+    points = np.array([[0, 0, 1.0], [0, 0, -1.0], [0, 0, 0.0], [2, 0, -1.0], [0.2, 0.1, -0.5]])
+    np.testing.assert_allclose(sight.furthest(points, 1.0, 3.0), [0, 1.15, 0.15, 0, 0.65], atol=1e-12)
+    np.testing.assert_allclose(sight.furthest(points, -1.0, 3.0), [0.85, 0, 0, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(sight.furthest(points, 1.0, 0.5), [0, 0, 0.15, 0, 0], atol=1e-12)

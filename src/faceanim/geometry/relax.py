@@ -28,6 +28,7 @@ __all__ = ["FoldRelaxer"]
 
 _YIELD_RINGS = (1, 2, 4, 8)  # how far from a fold held by pins they yield, tried in turn
 _PASSES = 3  # fresh starts of a frame's relaxation
+_BLEND = 3  # rings of blend, per ring of a seeded patch, between the patch put on the base and the rest
 
 
 class FoldRelaxer:
@@ -51,11 +52,14 @@ class FoldRelaxer:
         whole surface would flatten the motion it is meant to keep).
 
     Calling it with positions ``(T, V, 3)`` (and optionally the base positions ``(T, V, 3)`` that do
-    not fold, default the rest; and ``pinned (T, V) bool``, vertices kept where they are given, which
-    the fills take as edge values) returns relaxed positions and, per frame, how many triangles stay
-    turned over. With ``pins_yield=True`` a fold the pinned vertices hold in place (pinned corners
-    of their own, or a ring of pins around it that the neighbourhood cannot grow past) frees the pins
-    within 1, 2, 4 and then 8 rings of it, one step at a time, until it relaxes: for a caller whose
+    not fold, default the rest; ``pinned (T, V) bool``, vertices kept where they are given, which the
+    fills take as edge values; and ``seeds (T, V) bool``, vertices put on the base with ``seed_rings``
+    rings around them, and blended into the rest over as many rings again, for a caller that knows of
+    faults other than folds) returns
+    relaxed positions and, per frame, how many triangles stay turned over. With ``pins_yield=True`` a
+    fold the pinned vertices hold in place (pinned corners of their own, or a ring of pins around it
+    that the neighbourhood cannot grow past) frees the pins within 1, 2, 4 and then 8 rings of it, one
+    step at a time, until it relaxes: for a caller whose
     pins are a preference (a lip pushed out of the teeth) and for whom a fold is worse.
 
     Examples
@@ -99,12 +103,15 @@ class FoldRelaxer:
         """``(F,) bool``: the triangles turned over in one frame ``(V, 3)``."""
         return self._turned_among(positions, slice(None))
 
-    def __call__(self, positions, base=None, pinned=None, *, pins_yield: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, positions, base=None, pinned=None, *, pins_yield: bool = False,
+                 seeds=None, seed_rings: int = 0) -> tuple[np.ndarray, np.ndarray]:
         out = np.array(positions, dtype=np.float64)
         left = np.zeros(len(out), dtype=np.int64)
         for t in range(len(out)):
             frame_base = self.rest if base is None else np.asarray(base[t], dtype=np.float64)
             pins = None if pinned is None else np.array(pinned[t], dtype=bool)
+            if seeds is not None and np.any(seeds[t]):
+                self._based(out[t], frame_base, np.flatnonzero(seeds[t]), seed_rings, pins)
             left[t] = self._relaxed_again(out[t], frame_base, pins)
             for rings in _YIELD_RINGS if pins_yield and pins is not None else ():
                 if not left[t] or not pins.any():
@@ -113,23 +120,40 @@ class FoldRelaxer:
                 left[t] = self._relaxed_again(out[t], frame_base, pins)
         return out, left
 
-    def _relaxed_again(self, frame: np.ndarray, base: np.ndarray, pinned: np.ndarray | None) -> int:
+    def _based(self, frame: np.ndarray, base: np.ndarray, seeds: np.ndarray, rings: int, pinned) -> None:
+        """The ``seeds`` and ``rings`` rings around them put on ``base`` in ``frame`` (in place), and as
+        many rings again around those filled harmonically between the two, so the surface leaves the
+        base smoothly."""
+        free = np.ones(len(frame), dtype=bool) if pinned is None else ~pinned
+        core = self._grown(seeds, rings) & free
+        frame[core] = base[core]
+        inside = np.flatnonzero(self._grown(np.flatnonzero(core), _BLEND * rings) & ~core & free)
+        if len(inside):
+            edge_values = frame - base
+            edge_values[inside] = 0.0
+            L = self._laplacian[inside]
+            frame[inside] = base[inside] + splu(L[:, inside].tocsc(), permc_spec="MMD_AT_PLUS_A",
+                                                options={"SymmetricMode": True}).solve(-(L @ edge_values))
+
+    def _relaxed_again(self, frame: np.ndarray, base: np.ndarray, pinned: np.ndarray | None, seeds=None) -> int:
         """:meth:`_relax`, started afresh on what a neighbourhood grown to its cap left: a large fill
         over the thin lips can fold them elsewhere, and what it leaves is then a small fold of its own."""
-        left = self._relax(frame, base, pinned)
+        left = self._relax(frame, base, pinned, seeds)
         for _ in range(_PASSES - 1):
             if not left:
                 break
             left = self._relax(frame, base, pinned)
         return left
 
-    def _relax(self, frame: np.ndarray, base: np.ndarray, pinned: np.ndarray | None) -> int:
-        """Relax one frame in place; returns the triangles still turned over."""
+    def _relax(self, frame: np.ndarray, base: np.ndarray, pinned: np.ndarray | None, seeds=None) -> int:
+        """Relax one frame in place (the ``seeds`` vertices filled too, folded or not); returns the
+        triangles still turned over."""
         turned = self.turned(frame)
-        if not turned.any():
+        if not turned.any() and seeds is None:
             return 0
         free = np.ones(len(frame), dtype=bool) if pinned is None else ~pinned
-        region = self._grown(np.unique(self.triangles[turned]), self.rings) & free
+        start = np.unique(self.triangles[turned])
+        region = self._grown(start if seeds is None else np.union1d(start, seeds), self.rings) & free
         residual = frame - base
         for _ in range(self.rounds):
             inside = np.flatnonzero(region)

@@ -1,11 +1,16 @@
-"""Lips kept out of the teeth.
+"""Skin kept out of the teeth, and in front of them.
 
 A lip pressed against the teeth in the video, or one whose motion is interpolated a little too far
 back, would pass through them. The teeth sets are rigid (the upper with the skull, the lower turned
 with the jaw), so each frame's lip vertices are taken into a set's own rest frame, measured against
 its surface there (the signed distance to the closest point of its triangles, and the outward normal
 there, :func:`~faceanim.geometry.quality.signed_offsets`), and pushed back out to the depth they sat
-at at rest (a lip resting on or in the teeth at rest may stay as deep as it was).
+at at rest (a lip resting on or in the teeth at rest may stay as deep as it was): :class:`TeethContact`.
+
+Skin carried right through a crown, or round the gums' open edge, is on the far side and the closest
+point calls it clear. :class:`TeethCover` finds it the way a viewer does: in the set's frame, skin
+that had the teeth straight behind it at rest and now has them ahead of it; the deformer puts such
+skin back on the jaw's turn.
 """
 
 from __future__ import annotations
@@ -22,9 +27,11 @@ from ..parts import INNER_LIP_POINTS, FaceParts
 from ..parts.jaw import turned_vectors
 from ..target import Target
 
-__all__ = ["TeethContact"]
+__all__ = ["TeethContact", "TeethCover", "SightLines"]
 
 _FRONT = 3.0  # lip reaches (0.12 of the mouth's width): how far behind the lips the teeth are kept
+_LOOK = 3.0  # lip reaches: how far in front of or behind the skin the teeth are looked for
+_COVER_CLEAR = 0.5  # lip reaches: skin at least this clear of the teeth at rest is kept in front of them
 _PLANES = 4  # nearest tooth vertices whose tangent planes screen a lip vertex before the exact distance
 
 
@@ -131,3 +138,143 @@ class TeethContact:
             # Back to the posed frame: the push turns with the teeth.
             skin_field[:, self.lips] += turned_vectors(push, a, turn)
         return pushed
+
+
+class TeethCover:
+    """The skin that covers the rigid teeth at rest (the teeth straight behind it, seen from ahead of
+    the face, and none in front), and where in a frame the teeth have come through it.
+
+    The lips' contact (:class:`TeethContact`) measures the closest point of the teeth, which cannot
+    tell skin carried right through a thin crown, or past the gums' open lower edge, from skin in
+    front: there the closest point is on the far side and says "clear". On d6 onto the ICT head
+    (frames 788-789, lips pursed high while the jaw drops 25 degrees) the skin below the lower lip,
+    interpolated between the raised lip and the dropped chin, passed behind the lower teeth and they
+    showed through it. Seen along the face's forward axis the test is exact: skin is hidden where a
+    tooth lies ahead of it.
+
+    Parameters are :class:`TeethContact`'s. Calling it with skin displacements ``(T, S, 3)`` and the
+    jaw's angles ``(T,)`` returns ``(T, S) bool``: the covering skin that has teeth ahead of it.
+    """
+
+    def __init__(self, target: Target, parts: FaceParts, skin_ids):
+        self.parts = parts
+        self.sets = []
+        skin_ids = np.asarray(skin_ids, dtype=np.int64)
+        self.count = len(skin_ids)
+        if not {"8.3", "8.4"} <= target.points.keys():
+            return
+        rest = target.mesh.vertices
+        corners = rest[target.ids(["8.3", "8.4"])]
+        reach = 0.12 * np.linalg.norm(corners[0] - corners[1])
+        look = _LOOK * reach
+        skin_rest = self.skin_rest = rest[skin_ids]
+        for role, share in (("upper_teeth", 0.0), ("lower_teeth", 1.0)):
+            teeth = parts.mask(role) & (parts.jaw_weight == share)
+            surface = submesh(target.mesh, teeth)[0] if teeth.any() else None
+            if surface is None or not len(surface.triangles):
+                continue
+            sight = SightLines(surface, parts.axes)
+            clearance = cKDTree(surface.vertices).query(skin_rest, distance_upper_bound=look)[0]
+            # The lips' lining resting on the teeth is the contact's: here, the skin clear of them.
+            near = np.flatnonzero((clearance < look) & (clearance > _COVER_CLEAR * reach))
+            behind = sight.furthest(skin_rest[near], -1.0, look) > 0
+            clear = sight.furthest(skin_rest[near], 1.0, look) == 0
+            covering = near[behind & clear]
+            if not len(covering):
+                continue
+            # Skin that moved (in the set's frame) well short of its distance from the teeth has not
+            # gone round them: only the rest are looked at.
+            self.sets.append((share, sight, covering, 0.5 * clearance[covering], look))
+
+    def __call__(self, skin_field: np.ndarray, angles) -> np.ndarray:
+        hidden = np.zeros(skin_field.shape[:2], dtype=bool)
+        h, a = self.parts.hinge, self.parts.axes[0]
+        angles = np.asarray(angles, dtype=np.float64)[:, None]
+        for share, sight, covering, clearance, look in self.sets:
+            rest = self.skin_rest[covering]
+            local = h + turned_vectors(rest + skin_field[:, covering] - h, a, -share * angles)  # the set's frame
+            moved = np.linalg.norm(local - rest, axis=-1) >= clearance
+            t, k = np.nonzero(moved)
+            if not len(t):
+                continue
+            seen = sight.furthest(local[t, k], 1.0, look) > 0
+            hidden[t[seen], covering[k[seen]]] = True
+        return hidden
+
+
+class SightLines:
+    """A surface as seen along one axis, from ahead: the triangles a viewer there sees (a triangle
+    whose centre and corners all have another in front is dropped: anything ahead of a point has a
+    seen triangle ahead of it too), binned by where they fall on the plane across that axis (a grid
+    of cells about a median triangle wide), so a line along the axis meets only the few triangles in
+    its cell.
+
+    :meth:`furthest` gives, for points, how far along the axis (either way) the furthest crossing of
+    the seen surface within a length lies.
+    """
+
+    def __init__(self, surface: Mesh, axes: np.ndarray):
+        self.surface = surface
+        self.across = np.asarray(axes[:2], dtype=np.float64)  # the plane the grid lies in
+        self.along = np.asarray(axes[2], dtype=np.float64)
+        self._bin(np.arange(len(surface.triangles)))
+        corners = surface.vertices[surface.triangles]
+        centre = corners.mean(axis=1, keepdims=True)
+        samples = np.concatenate([centre, centre + 0.9 * (corners - centre)], axis=1)  # (F, 4, 3)
+        depth = float(np.ptp(surface.vertices @ self.along)) + 1.0
+        lift = 1e-6 * depth * self.along
+        covered = self.furthest(samples.reshape(-1, 3) + lift, 1.0, depth).reshape(-1, 4) > 0
+        self._bin(np.flatnonzero(~covered.all(axis=1)))
+
+    def _bin(self, seen: np.ndarray) -> None:
+        corners = self.surface.vertices[self.surface.triangles[seen]] @ self.across.T  # (F, 3, 2)
+        low, high = corners.min(axis=1), corners.max(axis=1)
+        self.cell = float(np.median((high - low).max(axis=1))) or 1.0
+        self.origin = low.min(axis=0)
+        first = np.floor((low - self.origin) / self.cell).astype(np.int64)
+        last = np.floor((high - self.origin) / self.cell).astype(np.int64)
+        self.columns = int(last[:, 0].max()) + 1
+        span = last - first + 1
+        cells, triangles = [], []
+        for di in range(int(span[:, 0].max())):
+            for dj in range(int(span[:, 1].max())):
+                inside = np.flatnonzero((di < span[:, 0]) & (dj < span[:, 1]))
+                cells.append((first[inside, 1] + dj) * self.columns + first[inside, 0] + di)
+                triangles.append(seen[inside])
+        cells, triangles = np.concatenate(cells), np.concatenate(triangles)
+        order = np.argsort(cells, kind="stable")
+        self.cells, self.triangles = cells[order], triangles[order]
+
+    def furthest(self, points: np.ndarray, sign: float, length: float) -> np.ndarray:
+        """``(N,)``: how far from each of ``points (N, 3)``, along ``sign`` (+1 or -1) times the axis,
+        the furthest crossing of the surface within ``length`` lies; 0 where none does."""
+        points = np.asarray(points, dtype=np.float64)
+        out = np.zeros(len(points))
+        if not len(points):
+            return out
+        cell = np.floor((points @ self.across.T - self.origin) / self.cell).astype(np.int64)
+        valid = (cell >= 0).all(axis=1) & (cell[:, 0] < self.columns)
+        key = np.where(valid, cell[:, 1] * self.columns + cell[:, 0], -1)
+        start = np.searchsorted(self.cells, key, side="left")
+        stop = np.searchsorted(self.cells, key, side="right")
+        counts = np.where(valid, stop - start, 0)
+        if not counts.sum():
+            return out
+        which = np.repeat(np.arange(len(points)), counts)
+        offsets = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+        tri = self.triangles[np.repeat(start, counts) + offsets]
+        d = sign * length * self.along
+        a, b, c = (self.surface.vertices[self.surface.triangles[tri, k]] for k in range(3))
+        e1, e2 = b - a, c - a
+        pvec = np.cross(d, e2)
+        det = np.einsum("nd,nd->n", e1, pvec)
+        crossing = np.abs(det) > 1e-12
+        inv = 1.0 / np.where(crossing, det, 1.0)
+        tvec = points[which] - a
+        u = np.einsum("nd,nd->n", tvec, pvec) * inv
+        qvec = np.cross(tvec, e1)
+        v = (qvec @ d) * inv
+        t = np.einsum("nd,nd->n", e2, qvec) * inv
+        hit = crossing & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t <= 1)
+        np.maximum.at(out, which[hit], length * t[hit])
+        return out

@@ -24,7 +24,7 @@ from ..mpeg4.fapstream import FapStream, held
 from ..parts import FaceParts
 from ..parts.jaw import unfolded_jaw_weight
 from ..target import Target
-from .contact import TeethContact
+from .contact import TeethContact, TeethCover
 from .transfer import SparseTransfer
 
 __all__ = ["PartsDeformer", "parts_frames", "deform_parts", "jaw_angles", "eye_rotations", "JAW_LIMITS"]
@@ -102,8 +102,13 @@ class PartsDeformer:
         self._turn_sin = np.cross(axis, r)
         self._turn_cos = np.cross(axis, self._turn_sin)
         self._skin_triangles = mesh.triangles[skin[mesh.triangles].all(axis=1)]
+        # Below the lower lip's lowest point (8.2): the chin, the jaw line and the neck it swings into.
+        lip = target.points.get("8.2")
+        self._under_lips = (None if lip is None
+                            else skin & ((mesh.vertices - mesh.vertices[lip]) @ parts.axes[1] < 0.0))
         self._bind_riders(mesh, skin_mesh)
         self.contact = TeethContact(target, parts, skin_ids)
+        self.cover = TeethCover(target, parts, skin_ids)
         self.relaxer = FoldRelaxer(skin_mesh.vertices, skin_mesh.triangles) if relax else None
 
     def _bind_riders(self, mesh: Mesh, skin_mesh: Mesh):
@@ -148,11 +153,12 @@ class PartsDeformer:
         """``(V,)`` the parts' jaw weight with the skin's share adjusted to the motion: at each control
         point on the skin, the share of the jaw's turn that best explains its displacements over all
         frames (least squares, within [0, 1]); the differences from the parts' weights spread over the
-        skin like the displacements (so far from the control points the parts' weights hold); last,
-        raised where the motion's widest opening would fold the skin (:meth:`unfolded`).
+        skin like the displacements (so far from the control points the parts' weights hold).
 
         Without this the residual after the turn is wherever the parts' weights guessed wrong, and
-        between control points the skin falls back towards the guess: a crease at every control."""
+        between control points the skin falls back towards the guess: a crease at every control.
+        It is not raised against folding (:meth:`unfolded` gives the fold-free weight the fold fill
+        falls back on)."""
         weight = self.parts.jaw_weight.copy()
         if not weight.any():  # a target with no jaw (no face points to place one): nothing to fit
             return weight
@@ -167,13 +173,13 @@ class PartsDeformer:
         share = np.where(seen, along / np.where(seen, energy, 1.0), weight[controls])
         change = np.clip(share, 0.0, 1.0) - weight[controls]
         weight[self.skin_ids] = np.clip(weight[self.skin_ids] + self.spread.operator @ change, 0.0, 1.0)
-        return self.unfolded(weight, angles)
+        return weight
 
-    def unfolded(self, weight, angles) -> np.ndarray:
-        """``weight`` raised on the skin where the motion's widest opening (or furthest closing) would
-        fold it (:func:`~faceanim.parts.jaw.unfolded_jaw_weight`)."""
+    def unfolded(self, weight, angles, movable=None) -> np.ndarray:
+        """``weight`` raised on the skin (or on the ``movable`` vertices) where the motion's widest
+        opening (or furthest closing) would fold it (:func:`~faceanim.parts.jaw.unfolded_jaw_weight`)."""
         return unfolded_jaw_weight(self.rest, self._skin_triangles, weight, self.parts.hinge, self.parts.axes[0],
-                                   angles, movable=self.parts.mask("skin"))
+                                   angles, movable=self.parts.mask("skin") if movable is None else movable)
 
     def __call__(self, displacements, angles, eyes=None, *, fit_weights: bool = True) -> np.ndarray:
         """Positions ``(T, V, 3)``, all at once (see :meth:`source` for a long motion)."""
@@ -187,26 +193,45 @@ class PartsDeformer:
         displacements = as_frames(displacements)
         angles = np.asarray(angles, dtype=np.float64)
         eyes = None if eyes is None else np.asarray(eyes, dtype=np.float64)
-        weight = (self.fitted_jaw_weight(displacements, angles) if fit_weights
-                  else self.unfolded(self.parts.jaw_weight, angles))
+        weight = self.fitted_jaw_weight(displacements, angles) if fit_weights else self.parts.jaw_weight
+        unfolded = self.unfolded(weight, angles)
+        if self.relaxer is None or self._under_lips is None:  # turn by the fold-free weight throughout
+            weight = unfolded
+        else:  # raised only under the lips (see _frames)
+            weight = self.unfolded(weight, angles, self._under_lips)
 
         def frames(start: int, stop: int) -> np.ndarray:
             at = slice(start, stop)
-            return self._frames(displacements[at], angles[at], None if eyes is None else eyes[at], weight)
+            return self._frames(displacements[at], angles[at], None if eyes is None else eyes[at], weight, unfolded)
 
         return frames
 
-    def _frames(self, displacements, angles, eyes, weight) -> np.ndarray:
-        moved = self.jaw_turn(angles) * weight[None, :, None]  # (T, V, 3)
+    def _frames(self, displacements, angles, eyes, weight, unfolded) -> np.ndarray:
+        """The motion rides on the jaw's turn by ``weight``; where it folds, the fold fill falls back on
+        the turn by ``unfolded``, which does not fold.
+
+        ``weight`` is raised against folding only under the lips, where the chin swings into the
+        neck: folds there are wide, and a fill that wide reaches the chin and takes back its drop
+        (d18 onto the ICT head: the chin 0.5 cm short of its 3.4 cm at the widest frames). Beside
+        the mouth the raise lowers the upper lip's corners towards the jaw, and the residual put
+        back only at the control points: turned by it at every frame, the upper lip hung over the
+        wide-open mouth in ragged folds between its controls (frame 83). There the fill, over the
+        fully raised turn, mends only the frames and places that fold; and where the skin below the
+        lips was carried behind the teeth (d6, frames 788-789: lips pursed high while the jaw drops
+        25 degrees), which the fully raised turn had folded and so hid, it is put back on that turn
+        (:meth:`_kept_in_front_of_teeth`)."""
+        turn = self.jaw_turn(angles)  # (T, V, 3)
+        moved = turn * weight[None, :, None]
         controls = self.controls[self.on_skin]
         residual = displacements[:, self.on_skin] - moved[:, controls]
         skin_field = moved[:, self.skin_ids] + self.spread(residual)
         if self.relaxer is None:
             self.contact(skin_field, angles)
-        else:  # the jaw's turn does not fold (its weight is unfolded): relax over it
-            jaw_only = self.rest[self.skin_ids] + moved[:, self.skin_ids]
+        else:
+            jaw_only = self.rest[self.skin_ids] + turn[:, self.skin_ids] * unfolded[self.skin_ids, None]
             relaxed, _ = self.relaxer(self.rest[self.skin_ids] + skin_field, jaw_only)
             skin_field = relaxed - self.rest[self.skin_ids]
+            self._kept_in_front_of_teeth(skin_field, jaw_only, angles)
             self._kept_out_of_teeth(skin_field, jaw_only, angles)
         moved[:, self.skin_ids] = skin_field
         if self._riders is not None:
@@ -224,6 +249,25 @@ class PartsDeformer:
                     moved[:, ball] = np.einsum("tij,nj->tni", eyes[:, k], r) - r
         moved += self.rest
         return moved
+
+    def _kept_in_front_of_teeth(self, skin_field, jaw_only, angles) -> None:
+        """The skin in ``skin_field (T, S, 3)`` that the teeth came through (:class:`~.contact.TeethCover`)
+        put back on the jaw's turn alone with the rings around it, blended into the rest and relaxed,
+        in place: a frame the teeth still show through is made again from more rings
+        (:data:`_COVER_RINGS`)."""
+        rest = self.rest[self.skin_ids]
+        hidden = self.cover(skin_field, angles)
+        again = np.flatnonzero(hidden.any(axis=1))
+        given = skin_field[again]
+        for rings in _COVER_RINGS:
+            if not len(again):
+                return
+            relaxed, _ = self.relaxer(rest + given, jaw_only[again], seeds=hidden[again], seed_rings=rings)
+            skin_field[again] = relaxed - rest
+            still = self.cover(skin_field[again], angles[again])
+            hidden[again] |= still
+            keep = still.any(axis=1)
+            again, given = again[keep], given[keep]
 
     def _kept_out_of_teeth(self, skin_field, jaw_only, angles) -> None:
         """Pushes the lips in ``skin_field (T, S, 3)`` out of the teeth, in place, without folding the
@@ -264,6 +308,7 @@ class PartsDeformer:
         skin_field[again] = field
 
 
+_COVER_RINGS = (2, 4, 8, 16)  # rings around skin the teeth show through that are filled, tried in turn
 _CONTACT_ROUNDS = 4  # pushes out of the teeth and relaxations around them, taken in turn
 _TAKE_BACK_ROUNDS = 8  # the last push taken back around its folds, a ring at a time, before it is dropped
 _FIT_CHUNK = 1024  # frames of the control points' motion read at once by the fits over all frames
