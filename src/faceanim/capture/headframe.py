@@ -169,8 +169,10 @@ def head_frame_into(landmarks, usable: np.ndarray, times: np.ndarray, width: int
             block[ok], turned[ok] = metric_geometry_frames(raw[ok], width, height)
         if smoothing is not None:
             point_filter(block, when, out=block)
-            translation = move_filter(turned[:, :3, 3][:, None], when)[:, 0]
-            linear = turn_filter(turned[:, :3, :3], when)
+            # frames without a face restart the pose's filters as they do the points' (they hold the
+            # identity, which the filters would otherwise take for a turn back to the camera's axes)
+            translation = move_filter(np.where(ok[:, None, None], turned[:, None, :3, 3], np.nan), when)[:, 0]
+            linear = turn_filter(np.where(ok[:, None, None], turned[:, :3, :3], np.nan), when)
             turned[ok, :3, 3] = translation[ok]
             turned[ok, :3, :3] = linear[ok]
         points[start:stop] = block
