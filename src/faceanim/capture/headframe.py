@@ -85,16 +85,23 @@ def restabilise(points: np.ndarray, pose: np.ndarray, rest: np.ndarray, usable: 
     return points, pose
 
 
+def _usable_blocks(points, usable: np.ndarray):
+    """``(start, stop, frames, block)`` for each block of :data:`_BLOCK` frames of ``points`` (an array or a
+    store) holding a usable frame: ``frames`` the usable ones (video frame numbers), ``block``
+    ``points[start:stop]`` (a view of an array, a copy from a store: the caller writes it back).
+    Temporaries stay a block, however long the video."""
+    for start in range(0, len(points), _BLOCK):
+        stop = min(start + _BLOCK, len(points))
+        frames = start + np.flatnonzero(usable[start:stop])
+        if frames.size:
+            yield start, stop, frames, points[start:stop]
+
+
 def _restabilise_in_place(points, pose: np.ndarray, rest: np.ndarray, usable: np.ndarray) -> None:
     """:func:`restabilise`, writing into ``points`` (an array or a :class:`~faceanim.framestore.FrameStore`,
     read and rewritten a block at a time) and ``pose``."""
     weights = _skull_weights()
-    for start in range(0, len(points), _BLOCK):  # temporaries bounded by a block, not the video
-        stop = min(start + _BLOCK, len(points))
-        frames = start + np.flatnonzero(usable[start:stop])
-        if not frames.size:
-            continue
-        block = points[start:stop]
+    for start, stop, frames, block in _usable_blocks(points, usable):
         moved = block[frames - start]
         to_frame = robust_procrustes(rest[:468], moved[:, :468], weights, scale=_SKULL_SPREAD)
         back = np.linalg.inv(to_frame)
@@ -140,12 +147,7 @@ def unview(points, pose: np.ndarray, usable: np.ndarray, at_rest=None) -> None:
     calm = np.median(features[chosen], axis=0) if at_rest is None else features[chosen].mean(axis=0)
     landmarks = min(points.shape[1], table.shape[1] // 3)
     table = table.reshape(len(table), -1, 3)[:, :landmarks]
-    for start in range(0, len(points), _BLOCK):  # temporaries bounded by a block, not the video
-        stop = min(start + _BLOCK, len(points))
-        frames = start + np.flatnonzero(usable[start:stop])
-        if not frames.size:
-            continue
-        block = points[start:stop]
+    for start, stop, frames, block in _usable_blocks(points, usable):
         block[frames - start, :landmarks] -= np.einsum("tf,flc->tlc", features[frames] - calm, table)
         points[start:stop] = block
 
