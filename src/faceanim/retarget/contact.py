@@ -217,8 +217,17 @@ class SightLines:
         self.surface = surface
         self.across = np.asarray(axes[:2], dtype=np.float64)  # the plane the grid lies in
         self.along = np.asarray(axes[2], dtype=np.float64)
-        self._bin(np.arange(len(surface.triangles)))
         corners = surface.vertices[surface.triangles]
+        flat = corners @ self.across.T  # (F, 3, 2): each triangle as seen along the axis
+        self._corner = flat[:, 0]
+        edges = np.stack([flat[:, 1] - flat[:, 0], flat[:, 2] - flat[:, 0]], axis=2)  # (F, 2, 2) columns
+        det = edges[:, 0, 0] * edges[:, 1, 1] - edges[:, 0, 1] * edges[:, 1, 0]
+        self._flat = np.abs(det) > 1e-12  # seen edge-on, a triangle covers nothing
+        safe = np.where(self._flat, det, 1.0)
+        self._inverse = np.stack([np.stack([edges[:, 1, 1], -edges[:, 0, 1]], axis=1),
+                                  np.stack([-edges[:, 1, 0], edges[:, 0, 0]], axis=1)], axis=1) / safe[:, None, None]
+        self._depth = corners @ self.along  # (F, 3)
+        self._bin(np.arange(len(surface.triangles)))
         centre = corners.mean(axis=1, keepdims=True)
         samples = np.concatenate([centre, centre + 0.9 * (corners - centre)], axis=1)  # (F, 4, 3)
         depth = float(np.ptp(surface.vertices @ self.along)) + 1.0
@@ -263,18 +272,13 @@ class SightLines:
         which = np.repeat(np.arange(len(points)), counts)
         offsets = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
         tri = self.triangles[np.repeat(start, counts) + offsets]
-        d = sign * length * self.along
-        a, b, c = (self.surface.vertices[self.surface.triangles[tri, k]] for k in range(3))
-        e1, e2 = b - a, c - a
-        pvec = np.cross(d, e2)
-        det = np.einsum("nd,nd->n", e1, pvec)
-        crossing = np.abs(det) > 1e-12
-        inv = 1.0 / np.where(crossing, det, 1.0)
-        tvec = points[which] - a
-        u = np.einsum("nd,nd->n", tvec, pvec) * inv
-        qvec = np.cross(tvec, e1)
-        v = (qvec @ d) * inv
-        t = np.einsum("nd,nd->n", e2, qvec) * inv
-        hit = crossing & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t <= 1)
-        np.maximum.at(out, which[hit], length * t[hit])
+        # In the grid's plane: the point's barycentric coordinates in the triangle, and the triangle's
+        # depth along the axis there.
+        at = points[which] @ self.across.T - self._corner[tri]
+        u = np.einsum("nij,nj->ni", self._inverse[tri], at)
+        inside = (u >= 0).all(axis=1) & (u.sum(axis=1) <= 1) & self._flat[tri]
+        depth = self._depth[tri, 0] + np.einsum("ni,ni->n", u, self._depth[tri, 1:] - self._depth[tri, :1])
+        ahead = sign * (depth - points[which] @ self.along)
+        hit = inside & (ahead >= 0) & (ahead <= length)
+        np.maximum.at(out, which[hit], ahead[hit])
         return out
