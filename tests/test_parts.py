@@ -462,9 +462,9 @@ def test_teeth_cover_sees_skin_carried_behind_the_teeth(ict):
     target, parts = ict
     skin_ids = np.flatnonzero(parts.mask("skin"))
     cover = TeethCover(target, parts, skin_ids)
-    lower = [s for s in cover.sets if s[0] == 1.0]
+    lower = [s for s in cover.sets if s.turn_share == 1.0]
     assert len(lower) == 1
-    covering = lower[0][2]
+    covering = lower[0].covering
     assert len(covering) > 200
     field = np.zeros((3, len(skin_ids), 3))
     field[1, covering] = -1.5 * parts.axes[2]
@@ -485,8 +485,8 @@ def test_skin_carried_behind_the_lower_teeth_is_put_back_in_front(ict):
     ids = np.unique(target.ids([n for n in target.points if not n.startswith("mp")]))
     deformer = PartsDeformer(target, parts, ids)
     skin = deformer.skin_ids
-    lower = [s for s in deformer.cover.sets if s[0] == 1.0][0]
-    below_lip = lower[2][(rest[skin[lower[2]]] - rest[target.points["8.2"]]) @ parts.axes[1] < 0]
+    covering = [s for s in deformer.cover.sets if s.turn_share == 1.0][0].covering
+    below_lip = covering[(rest[skin[covering]] - rest[target.points["8.2"]]) @ parts.axes[1] < 0]
     assert len(below_lip) > 50
     field = np.zeros((1, len(skin), 3))
     field[0, below_lip] = -1.5 * parts.axes[2]
@@ -500,19 +500,3 @@ def test_skin_carried_behind_the_lower_teeth_is_put_back_in_front(ict):
     positions = rest[None].copy()
     positions[0, skin] += field[0]
     assert not turned_over(rest, positions, skin_triangles).any()
-
-
-def test_sight_lines_through_a_slab_give_how_far_its_front_is():
-    """A 1 x 1 x 0.3 box seen along z: from behind it its front face is 1.15 ahead, from inside 0.15,
-    from in front or beside it nothing; looking back from in front, the front face is 0.85 behind."""
-    import trimesh
-
-    from faceanim.geometry.mesh import Mesh
-    from faceanim.retarget.contact import SightLines
-
-    box = trimesh.creation.box(extents=(1.0, 1.0, 0.3))
-    sight = SightLines(Mesh(np.asarray(box.vertices, dtype=np.float64), np.asarray(box.faces)), np.eye(3))
-    points = np.array([[0, 0, 1.0], [0, 0, -1.0], [0, 0, 0.0], [2, 0, -1.0], [0.2, 0.1, -0.5]])
-    np.testing.assert_allclose(sight.furthest(points, 1.0, 3.0), [0, 1.15, 0.15, 0, 0.65], atol=1e-12)
-    np.testing.assert_allclose(sight.furthest(points, -1.0, 3.0), [0.85, 0, 0, 0, 0], atol=1e-12)
-    np.testing.assert_allclose(sight.furthest(points, 1.0, 0.5), [0, 0, 0.15, 0, 0], atol=1e-12)

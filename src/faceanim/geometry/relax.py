@@ -54,13 +54,12 @@ class FoldRelaxer:
     Calling it with positions ``(T, V, 3)`` (and optionally the base positions ``(T, V, 3)`` that do
     not fold, default the rest; ``pinned (T, V) bool``, vertices kept where they are given, which the
     fills take as edge values; and ``seeds (T, V) bool``, vertices put on the base with ``seed_rings``
-    rings around them, and blended into the rest over as many rings again, for a caller that knows of
-    faults other than folds) returns
-    relaxed positions and, per frame, how many triangles stay turned over. With ``pins_yield=True`` a
-    fold the pinned vertices hold in place (pinned corners of their own, or a ring of pins around it
-    that the neighbourhood cannot grow past) frees the pins within 1, 2, 4 and then 8 rings of it, one
-    step at a time, until it relaxes: for a caller whose
-    pins are a preference (a lip pushed out of the teeth) and for whom a fold is worse.
+    rings around them and blended into the rest over :data:`_BLEND` times as many, for a caller that
+    knows of faults other than folds) returns relaxed positions and, per frame, how many triangles
+    stay turned over. With ``pins_yield=True`` a fold the pinned vertices hold in place (pinned
+    corners of their own, or a ring of pins around it that the neighbourhood cannot grow past) frees
+    the pins within 1, 2, 4 and then 8 rings of it, one step at a time, until it relaxes: for a caller
+    whose pins are a preference (a lip pushed out of the teeth) and for whom a fold is worse.
 
     Examples
     --------
@@ -121,9 +120,9 @@ class FoldRelaxer:
         return out, left
 
     def _based(self, frame: np.ndarray, base: np.ndarray, seeds: np.ndarray, rings: int, pinned) -> None:
-        """The ``seeds`` and ``rings`` rings around them put on ``base`` in ``frame`` (in place), and as
-        many rings again around those filled harmonically between the two, so the surface leaves the
-        base smoothly."""
+        """The ``seeds`` and ``rings`` rings around them put on ``base`` in ``frame`` (in place), and
+        :data:`_BLEND` times as many rings around those filled harmonically between the two, so the
+        surface leaves the base smoothly (with as many rings as the patch, a crease ran round it)."""
         free = np.ones(len(frame), dtype=bool) if pinned is None else ~pinned
         core = self._grown(seeds, rings) & free
         frame[core] = base[core]
@@ -135,25 +134,23 @@ class FoldRelaxer:
             frame[inside] = base[inside] + splu(L[:, inside].tocsc(), permc_spec="MMD_AT_PLUS_A",
                                                 options={"SymmetricMode": True}).solve(-(L @ edge_values))
 
-    def _relaxed_again(self, frame: np.ndarray, base: np.ndarray, pinned: np.ndarray | None, seeds=None) -> int:
+    def _relaxed_again(self, frame: np.ndarray, base: np.ndarray, pinned: np.ndarray | None) -> int:
         """:meth:`_relax`, started afresh on what a neighbourhood grown to its cap left: a large fill
         over the thin lips can fold them elsewhere, and what it leaves is then a small fold of its own."""
-        left = self._relax(frame, base, pinned, seeds)
+        left = self._relax(frame, base, pinned)
         for _ in range(_PASSES - 1):
             if not left:
                 break
             left = self._relax(frame, base, pinned)
         return left
 
-    def _relax(self, frame: np.ndarray, base: np.ndarray, pinned: np.ndarray | None, seeds=None) -> int:
-        """Relax one frame in place (the ``seeds`` vertices filled too, folded or not); returns the
-        triangles still turned over."""
+    def _relax(self, frame: np.ndarray, base: np.ndarray, pinned: np.ndarray | None) -> int:
+        """Relax one frame in place; returns the triangles still turned over."""
         turned = self.turned(frame)
-        if not turned.any() and seeds is None:
+        if not turned.any():
             return 0
         free = np.ones(len(frame), dtype=bool) if pinned is None else ~pinned
-        start = np.unique(self.triangles[turned])
-        region = self._grown(start if seeds is None else np.union1d(start, seeds), self.rings) & free
+        region = self._grown(np.unique(self.triangles[turned]), self.rings) & free
         residual = frame - base
         for _ in range(self.rounds):
             inside = np.flatnonzero(region)
