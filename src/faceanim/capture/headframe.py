@@ -140,7 +140,8 @@ def unview(points, pose: np.ndarray, usable: np.ndarray, at_rest=None) -> None:
     quadratic in :func:`view_features`, learned on still ICT faces turned (``benchmarks/view_shifts.py``).
     """
     table = _view_table()
-    features = view_features(pose)
+    features = np.full((len(pose), 5), np.nan)  # frames without a face have no pose to be seen from
+    features[usable] = view_features(pose[usable])
     chosen = usable if at_rest is None else np.isin(np.arange(len(pose)), at_rest) & usable
     if not chosen.any():
         return
