@@ -43,7 +43,23 @@ def seeds_of(text: str) -> list[int]:
 
 
 def still_track(model, seed: int, cache: Path | None):
-    """The tracked render of identity A (of ``seed``) performing the script with a still head."""
+    """The tracked render of identity A (of ``seed``) performing the round trip's script with a still head."""
+    import roundtrip_ict as R
+
+    return performed_track(model, seed, R.script(model), None if cache is None else cache / f"head_pose_{seed}.npz")
+
+
+def performed_track(model, seed: int, weights: np.ndarray, saved: Path | None):
+    """The tracked render of identity A (of ``seed``) performing the expression ``weights (T, 53)``
+    with a still head, read from ``saved`` when it is there and kept there when given."""
+    deltas = np.einsum("te,evc->tvc", weights, model.expression_deltas)
+    return rendered_track(model, seed, lambda A: (A + d for d in deltas), saved, margin=1.1)
+
+
+def rendered_track(model, seed: int, frames, saved: Path | None, *, margin: float):
+    """Identity A (of ``seed``) rendered at the positions ``frames(A)`` yields, a still camera framing
+    its face with ``margin``, as the round trip's portrait source, then tracked; read from ``saved``
+    when it is there and kept there when given."""
     import roundtrip_ict as R
 
     from faceanim.capture.track import Track, track_video
@@ -52,20 +68,18 @@ def still_track(model, seed: int, cache: Path | None):
     from faceanim.render.rasterizer import Renderer
     from faceanim.render.video import video_writer
 
-    saved = None if cache is None else cache / f"head_pose_{seed}.npz"
     if saved is not None and saved.exists():
         return Track.load(saved)
     A, _ = model.random_identities(np.random.default_rng(seed))
-    deltas = np.einsum("te,evc->tvc", R.script(model), model.expression_deltas)
     labelled = read_mesh(R.ICT / "obj" / "generic_neutral_mesh.obj")
     source = labelled.with_vertices(A)
     style = R.source_style(model, A, labelled, "portrait")
     with tempfile.TemporaryDirectory() as tmp:
         video = Path(tmp) / "performance.mp4"
-        camera = front_camera(A[:R.FACE_VERTICES], 512, 512, vertical_fov=20.0, margin=1.1)
+        camera = front_camera(A[:R.FACE_VERTICES], 512, 512, vertical_fov=20.0, margin=margin)
         with Renderer(512, 512) as renderer, video_writer(video, 25, 512, 512) as write:
-            for d in deltas:
-                write(renderer.render(source, camera, positions=A + d, **style))
+            for positions in frames(A):
+                write(renderer.render(source, camera, positions=positions, **style))
         track = track_video(video, progress=False)
     if saved is not None:
         track.save(saved)
@@ -92,31 +106,13 @@ def turned_track(model, seed: int, cache: Path | None):
     point 5 cm behind its face's centre, the camera still."""
     import roundtrip_ict as R
 
-    from faceanim.capture.track import Track, track_video
-    from faceanim.geometry import read_mesh
-    from faceanim.render.camera import front_camera
-    from faceanim.render.rasterizer import Renderer
-    from faceanim.render.video import video_writer
+    def turning(A):
+        face = A[:R.FACE_VERTICES]
+        centre = 0.5 * (face.min(axis=0) + face.max(axis=0)) - [0.0, 0.0, 5.0]
+        return ((A - centre) @ turn.T + centre for turn in turns())
 
-    saved = None if cache is None else cache / f"head_turn_{seed}.npz"
-    if saved is not None and saved.exists():
-        return Track.load(saved)
-    A, _ = model.random_identities(np.random.default_rng(seed))
-    labelled = read_mesh(R.ICT / "obj" / "generic_neutral_mesh.obj")
-    source = labelled.with_vertices(A)
-    style = R.source_style(model, A, labelled, "portrait")
-    face = A[:R.FACE_VERTICES]
-    centre = 0.5 * (face.min(axis=0) + face.max(axis=0)) - [0.0, 0.0, 5.0]
-    with tempfile.TemporaryDirectory() as tmp:
-        video = Path(tmp) / "turning.mp4"
-        camera = front_camera(face, 512, 512, vertical_fov=20.0, margin=1.3)
-        with Renderer(512, 512) as renderer, video_writer(video, 25, 512, 512) as write:
-            for turn in turns():
-                write(renderer.render(source, camera, positions=(A - centre) @ turn.T + centre, **style))
-        track = track_video(video, progress=False)
-    if saved is not None:
-        track.save(saved)
-    return track
+    return rendered_track(model, seed, turning, None if cache is None else cache / f"head_turn_{seed}.npz",
+                          margin=1.3)
 
 
 @contextlib.contextmanager

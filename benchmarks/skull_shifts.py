@@ -22,7 +22,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -59,33 +58,9 @@ def script(model) -> np.ndarray:
 
 def still_track(model, seed: int, cache: Path | None):
     """The tracked render of identity A (of ``seed``) performing :func:`script` with a still head."""
-    import roundtrip_ict as R
+    from head_pose_ict import performed_track
 
-    from faceanim.capture.track import Track, track_video
-    from faceanim.geometry import read_mesh
-    from faceanim.render.camera import front_camera
-    from faceanim.render.rasterizer import Renderer
-    from faceanim.render.video import video_writer
-
-    saved = None if cache is None else cache / f"skull_{seed}.npz"
-    if saved is not None and saved.exists():
-        return Track.load(saved)
-    A, _ = model.random_identities(np.random.default_rng(seed))
-    deltas = np.einsum("te,evc->tvc", script(model), model.expression_deltas)
-    labelled = read_mesh(R.ICT / "obj" / "generic_neutral_mesh.obj")
-    source = labelled.with_vertices(A)
-    style = R.source_style(model, A, labelled, "portrait")
-    with tempfile.TemporaryDirectory() as tmp:
-        video = Path(tmp) / "performance.mp4"
-        camera = front_camera(A[:R.FACE_VERTICES], 512, 512, vertical_fov=20.0, margin=1.1)
-        with Renderer(512, 512) as renderer, video_writer(video, 25, 512, 512) as write:
-            for d in deltas:
-                write(renderer.render(source, camera, positions=A + d, **style))
-        track = track_video(video, progress=False)
-    if saved is not None:
-        track.save(saved)
-    return track
-
+    return performed_track(model, seed, script(model), None if cache is None else cache / f"skull_{seed}.npz")
 
 def seen_moves(track) -> np.ndarray:
     """``(T, L, 3)``: each frame's landmarks in the neutral frames' head frame, less their neutral (cm)."""

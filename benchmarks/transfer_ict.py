@@ -81,14 +81,21 @@ def cheek_bones(vertices: np.ndarray, landmarks: np.ndarray) -> np.ndarray:
     return np.asarray(chosen)
 
 
+def identity_pair(model, seed: int):
+    """The seed's pair of identities: its generator (left where the pair's draws leave it, for the
+    caller's further draws), A's and B's vertices, A as a mesh (the source) and B remade as a face
+    (the target); the weights at sigma 2.5 for the :data:`WIDE` seeds, 1.5 for the others."""
+    rng = np.random.default_rng(seed)
+    A, B = model.random_identities(rng, spread=2.5 if seed in WIDE else 1.5)
+    target = remade_face(model, B, rng)
+    return rng, A, B, model.mesh(A), target
+
+
 def score_pair(model, seed: int, mixes: int):
     if model is None:  # in a worker process: load its own copy
         model = load_ict()
-    rng = np.random.default_rng(seed)
+    rng, A, _, source, target = identity_pair(model, seed)
     spread = 2.5 if seed in WIDE else 1.5
-    A, B = model.random_identities(rng, spread=spread)
-    target = remade_face(model, B, rng)
-    source = model.mesh(A)
     rest = target.mesh.vertices
     singles = model.expression_deltas
     picks = np.array([rng.choice(len(singles), 3, replace=False) for _ in range(mixes)])

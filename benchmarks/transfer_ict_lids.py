@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from ict_scenario import control_sets, ict_missing, load_ict, relative_error, remade_face  # noqa: E402
+from ict_scenario import control_sets, ict_missing, load_ict, relative_error  # noqa: E402
 from report import publish  # noqa: E402
-from transfer_ict import TUNING, WIDE, parse_seeds  # noqa: E402
+from transfer_ict import TUNING, WIDE, identity_pair, parse_seeds  # noqa: E402
 
 from faceanim.retarget import (  # noqa: E402
     ControlPairs,
@@ -43,10 +43,7 @@ def score(seed: int, end: str):
     model = _model
     correspondence.LID_UPPER = end
     correspondence.clear_cache()
-    rng = np.random.default_rng(seed)
-    A, B = model.random_identities(rng, spread=2.5 if seed in WIDE else 1.5)
-    target = remade_face(model, B, rng)
-    source = model.mesh(A)
+    _, A, B, source, target = identity_pair(model, seed)
     ids = control_sets(model, A)["68 landmarks"]
     tids = target.index_of[ids]
     singles = model.expression_deltas
