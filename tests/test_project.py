@@ -38,6 +38,23 @@ def test_matches_brute_force_loop():
     np.testing.assert_allclose(hit.matrix(len(mesh.vertices)) @ mesh.vertices, hit.points, atol=1e-12)
 
 
+def test_near_points_among_triangles_of_many_sizes_match_brute_force():
+    # Near points are settled by their nearest vertex's distance alone, one ball per size class; the
+    # sphere's triangles are stretched to sizes a hundredfold apart so that many classes are searched,
+    # and the far points still take the growing search.
+    mesh = bumpy_sphere(16)
+    rng = np.random.default_rng(2)
+    squeeze = np.exp(rng.uniform(-2.3, 2.3, size=len(mesh.vertices)))
+    stretched = Mesh(mesh.vertices * np.c_[squeeze ** 0.5, np.ones(len(squeeze)), np.ones(len(squeeze))],
+                     mesh.triangles)
+    on = stretched.vertices[rng.integers(0, len(stretched.vertices), 300)]
+    points = np.r_[on + rng.normal(scale=0.01, size=on.shape), rng.normal(scale=4.0, size=(30, 3))]
+    hit = project_points(stretched, points)
+    expected = [brute_force(stretched, p) for p in points]
+    np.testing.assert_allclose(hit.distances, expected, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(hit.points - points, axis=1), hit.distances, atol=1e-12)
+
+
 def test_closest_point_regions_of_one_triangle():
     tri = np.array([[[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]])
     cases = {(-1, -1, 0): [1, 0, 0], (2, -1, 0): [0, 1, 0], (-1, 2, 0): [0, 0, 1], (0.5, -1, 3): [0.5, 0.5, 0],
