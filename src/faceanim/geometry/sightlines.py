@@ -9,13 +9,18 @@ from .mesh import Mesh
 
 __all__ = ["SightLines"]
 
+# Cells across a median triangle. A point meets every triangle whose box overlaps its cell, and a cell
+# a triangle wide is overlapped by the boxes of its neighbours too: the ICT head's teeth find their
+# seen triangles in 0.26-0.30 s with a third of a triangle, 0.87-1.03 s with a whole one (same result).
+_CELLS_ACROSS = 3
+
 
 class SightLines:
     """A surface as seen along one axis, from ahead: the triangles a viewer there sees (a triangle
     whose centre and corners all have another in front is dropped: anything ahead of a point has a
     seen triangle ahead of it too), binned by where they fall on the plane across that axis (a grid
-    of cells about a median triangle wide), so a line along the axis meets only the few triangles in
-    its cell.
+    of cells a third of a median triangle wide), so a line along the axis meets only the few triangles
+    over its cell.
 
     :meth:`furthest` gives, for points, how far along the axis (either way) the furthest crossing of
     the seen surface within a length lies.
@@ -46,7 +51,7 @@ class SightLines:
     def _bin(self, seen: np.ndarray) -> None:
         corners = self.surface.vertices[self.surface.triangles[seen]] @ self.across.T  # (F, 3, 2)
         low, high = corners.min(axis=1), corners.max(axis=1)
-        self.cell = float(np.median((high - low).max(axis=1))) or 1.0
+        self.cell = float(np.median((high - low).max(axis=1))) / _CELLS_ACROSS or 1.0
         self.origin = low.min(axis=0)
         first = np.floor((low - self.origin) / self.cell).astype(np.int64)
         last = np.floor((high - self.origin) / self.cell).astype(np.int64)
