@@ -103,3 +103,40 @@ def test_the_compressions_memory_does_not_grow_with_the_number_of_frames():
 
     growth = traced_peak(3000) - traced_peak(500)
     assert growth < 1e6, growth
+
+
+@pytest.mark.parametrize("workers", [2, 3])
+def test_frames_made_by_several_processes_are_the_frames_made_by_one(tmp_path, workers):
+    from faceanim.geometry.animation import PARALLEL_RUN, spilled
+    from faceanim.progress import Quiet
+
+    mesh = wave_mesh()
+    streamed = Animation.streamed(mesh, wave_source(mesh), 5 * PARALLEL_RUN + 3, 25.0)
+    shown = []
+
+    class Counting(Quiet):
+        def bar(self, iterable, *, total=None, desc, unit="frame"):
+            shown.append(total)
+            return (shown.append(item) or item for item in iterable)
+
+    with spilled(streamed, folder=tmp_path, workers=1) as one, \
+            spilled(streamed, folder=tmp_path, workers=workers, progress=Counting()) as several:
+        np.testing.assert_array_equal(several.positions, one.positions)
+    assert shown[0] == len(streamed) and len(shown) == 1 + len(streamed)  # one step shown per frame, by anyone
+
+
+def test_an_error_in_a_process_making_frames_is_raised_and_nothing_is_kept(tmp_path):
+    from faceanim.geometry.animation import PARALLEL_RUN, spilled
+
+    mesh = wave_mesh()
+    made = wave_source(mesh)
+
+    def broken(start, stop):
+        if start >= 3 * PARALLEL_RUN:  # a run the forked worker or this process takes
+            raise ValueError(f"frame {start} cannot be made")
+        return made(start, stop)
+
+    with pytest.raises(ValueError, match="cannot be made"):
+        with spilled(Animation.streamed(mesh, broken, 6 * PARALLEL_RUN, 25.0), folder=tmp_path, workers=2):
+            pytest.fail("the frames were yielded although some could not be made")
+    assert list(tmp_path.iterdir()) == []  # the store has no name: nothing is left behind

@@ -62,3 +62,10 @@ def test_expressions_example_runs(tmp_path):
     made = example["main"](tmp_path)
     assert made["recipe"] == {"6": 0.8, "12": 1.0} and len(made["animation"]) == 20
     assert {p.name for p in tmp_path.iterdir()} == {"smile.fap", "smile.glb", "smile_faps.csv"}
+
+
+@pytest.mark.parametrize("workers", [0, 1.5, True])
+def test_a_bad_number_of_deforming_processes_is_refused_before_any_work(tmp_path, workers):
+    with pytest.raises(faceanim.InputError, match="workers must be a whole number"):
+        faceanim.decode(tmp_path / "absent.fap", tmp_path / "out.glb", workers=workers)
+    assert list(tmp_path.iterdir()) == []

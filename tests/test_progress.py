@@ -69,3 +69,32 @@ def test_a_frame_loop_stops_at_the_next_frame_once_an_interrupt_was_received(pro
                 received.append(signal.SIGTERM)  # what the handler records before raising
     assert seen == [0, 1, 2, 3] and stop.value.signum == signal.SIGTERM
     assert list(Progress(io.StringIO(), bars=False).bar(range(3), total=3, desc="x")) == [0, 1, 2]  # unwatched
+
+
+def test_work_beside_the_job_stops_at_its_next_frame_when_the_job_fails():
+    """``animate`` tracks the video in a thread while it places the control points: a bad target stops
+    the tracking instead of waiting for the whole video."""
+    import threading
+    import time
+
+    from faceanim.errors import InputError
+
+    seen = []
+    started = threading.Event()
+
+    def tracking(shown):
+        for i in shown.bar(range(10_000), total=10_000, desc="tracking"):
+            seen.append(i)
+            started.set()
+            time.sleep(0.001)
+        return "tracked"
+
+    def placement():
+        started.wait(5)
+        raise InputError("head.obj: its parts cannot be told apart")
+
+    with pytest.raises(InputError, match="parts"):
+        pipeline._beside(placement, tracking, Quiet())
+    assert 0 < len(seen) < 10_000
+    assert pipeline._beside(lambda: "placed", lambda shown: list(shown.bar(range(3), desc="t")), Quiet()) == \
+        ("placed", [0, 1, 2])

@@ -125,7 +125,8 @@ def process_video(video: Video, steps: tuple[str, ...], folder, *, force: bool =
                             capture=capture)
             if "animate" in todo:
                 own = None if video.target is None else pipeline.load_target(video.target)
-                pipeline.animate(video.path, todo["animate"], target=own or target, capture=capture)
+                # A task holds one of the cluster's CPUs: it deforms in its own process only.
+                pipeline.animate(video.path, todo["animate"], target=own or target, capture=capture, workers=1)
     except Exception as exc:  # noqa: BLE001 - one video's fault is its own, reported in its row
         return VideoResult(str(video.path), video.name, "failed", frames, tracked, time.perf_counter() - start,
                            error=_one_line(exc))

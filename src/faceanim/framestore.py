@@ -65,6 +65,14 @@ class FrameStore:
     def shape(self) -> tuple[int, ...]:
         return (self._length, *self.frame_shape)
 
+    def reserve(self, length: int) -> None:
+        """Hold ``length`` rows from now on, for writers that fill them out of order (by slice
+        assignment); rows not yet written read as zeros."""
+        if int(length) != length or length < self._length:
+            raise ValueError(f"length must be a whole number of at least the {self._length} rows held, got {length}")
+        os.ftruncate(self._fd, int(length) * self._bytes)
+        self._length = int(length)
+
     def append(self, rows) -> None:
         """Add one frame (``frame_shape``, or None for a row of NaN) or a block ``(n, *frame_shape)``."""
         if rows is None:

@@ -3,6 +3,7 @@ each other, computes, and writes its output completely or not at all."""
 
 from __future__ import annotations
 
+import signal
 import warnings
 from pathlib import Path
 
@@ -293,6 +294,35 @@ def _preview(path, animation, target, progress, *, source_frames=None, size: int
             write(frame)
 
 
+def _beside(main, other, progress):
+    """``(main(), other(progress))``, ``other`` run in a thread meanwhile: the video's tracking keeps
+    one core busy (MediaPipe's graph, frame after frame) while the target's placement and parts can
+    take another. An error of ``main`` (a bad ``--parts`` file, a face of no human size) stops
+    ``other`` at its next frame and is raised; ``other``'s own is raised once ``main`` is done."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    stop: list[int] = []
+    with ThreadPoolExecutor(1, thread_name_prefix="faceanim") as pool:
+        running = pool.submit(other, progress.stopped_by(stop))
+        try:
+            done = main()
+        except BaseException:
+            stop.append(signal.SIGINT)
+            raise
+    return done, running.result()
+
+
+def _workers(workers) -> int:
+    """The processes a job deforms its frames with: ``workers`` if given, else the default."""
+    from .geometry.animation import default_workers
+
+    if workers is None:
+        return default_workers()
+    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
+        raise InputError(f"workers must be a whole number of at least 1, got {workers!r}")
+    return int(workers)
+
+
 def _ready_target(target, mesh_path, points, fdp, parts, progress):
     """The target (a ready one, or loaded from its files), its parts and its unit (metres per model
     unit), all told before any long work: a bad ``--parts`` file, parts that cannot be told apart or a
@@ -309,14 +339,15 @@ def _ready_target(target, mesh_path, points, fdp, parts, progress):
 
 
 def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview=None, head_motion=False,
-           target=None, obj_sequence=None, csv=None, progress=None, parts=None, speaker=None):
+           target=None, obj_sequence=None, csv=None, progress=None, parts=None, speaker=None, workers=None):
     """``faceanim decode``: a ``.fap`` file onto a target mesh, written as an animated ``.glb``.
     ``target``, a ready :class:`~faceanim.target.Target`, stands in for the mesh and its points;
     ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None);
     ``parts``, a ``PARTS.json`` (see :func:`~faceanim.parts.read_parts_file`), labels the target's parts
     where its file and its geometry do not tell them apart; ``speaker``, a speaker model file
     (``faceanim speaker build``), interprets the stream first
-    (:meth:`~faceanim.speaker.SpeakerModel.regularise`). Returns the streamed
+    (:meth:`~faceanim.speaker.SpeakerModel.regularise`); ``workers``, the processes deforming the frames
+    (default :func:`~faceanim.geometry.animation.default_workers`). Returns the streamed
     :class:`~faceanim.geometry.animation.Animation`: reading its frames deforms them again."""
     from .mpeg4.fapfile import read_fap
     from .progress import as_progress
@@ -327,6 +358,7 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
                    "--obj-sequence": (obj_sequence, SEQUENCE_FOLDER)},
                   inputs={"FILE.fap": fap_path, "--target": target_mesh, "--points": points, "--fdp": fdp,
                           "--parts": parts, "--speaker": speaker})
+    workers = _workers(workers)
     shown = as_progress(progress)
     stream = read_fap(fap_path)
     if speaker is not None:
@@ -336,7 +368,7 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
     shown.status(f"playing {len(stream)} frames of FAPs on the target ({len(target.mesh.vertices):,} vertices)")
     animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
-    with spilled(animation, folder=output.parent, progress=shown) as kept:  # deformed once, read by each output
+    with spilled(animation, folder=output.parent, progress=shown, workers=workers) as kept:  # deformed once
         shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
         _write_glb(output, kept, unit)
         _write_extra_outputs(kept, stream, obj_sequence, csv, shown)
@@ -367,7 +399,7 @@ def _named_rig_route(source, target_mesh, target, head_motion, via) -> bool:
 
 def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=None, fap=None, head_motion=False,
             progress=None, neutral=None, target=None, obj_sequence=None, csv=None, via="motion", smoothing=True,
-            parts=None, capture=None):
+            parts=None, capture=None, workers=None):
     """``faceanim animate``: a video of a face drives a target mesh. ``target``, a ready
     :class:`~faceanim.target.Target`, stands in for the mesh and its points. ``neutral``: the frames
     at rest (``FRAME`` or ``START:END``; found automatically when None); ``smoothing``: the One Euro filter.
@@ -377,7 +409,8 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     warning. ``via="faps"`` plays the FAP stream, as ``decode`` would play the ``.fap`` file.
     ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None).
     ``capture``, the :class:`~faceanim.capture.stream.Capture` of ``video`` already made, stands in
-    for tracking it again. Returns ``(animation, stream)``: the streamed
+    for tracking it again. ``workers``: the processes deforming the frames (default
+    :func:`~faceanim.geometry.animation.default_workers`). Returns ``(animation, stream)``: the streamed
     :class:`~faceanim.geometry.animation.Animation` (reading its frames deforms them again) and the FAPs.
 
     A ``target_mesh`` ``.glb`` whose morph targets carry ARKit or FACS AU names is a named rig: its own
@@ -413,12 +446,19 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
                    "--csv": (csv, ".csv"), "--obj-sequence": (obj_sequence, SEQUENCE_FOLDER)},
                   inputs={"VIDEO": video, "--target": target_mesh, "--points": points, "--fdp": fdp, "--parts": parts})
     neutral_window(neutral, "animate")  # said before any work is done
+    workers = _workers(workers)
     shown = as_progress(progress)
-    target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
+
+    def ready():
+        return _ready_target(target, target_mesh, points, fdp, parts, shown)
+
     # The landmarks and the motion stay in unnamed temporary files beside the output (freed with the
     # animation returned): memory does not grow with the video's length.
     if capture is None:
-        capture = captured_source(video, neutral=neutral, smoothing=smoothing, progress=shown, folder=output.parent)
+        (target, pieces, unit), capture = _beside(ready, lambda shown_there: captured_source(
+            video, neutral=neutral, smoothing=smoothing, progress=shown_there, folder=output.parent), shown)
+    else:
+        target, pieces, unit = ready()
     motion = capture.motion
     stream, _ = clip_to_range(motion_to_faps(motion, name=Path(video).stem.replace(" ", "_")))
     if via == "motion" and len(shared_points(motion, target)) < MINIMUM_SHARED_POINTS:
@@ -431,7 +471,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
         animation = animate_motion(motion, target, head_motion=head_motion, gaze=stream, parts=pieces)
     else:
         animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
-    with spilled(animation, folder=output.parent, progress=shown) as kept:  # deformed once, read by each output
+    with spilled(animation, folder=output.parent, progress=shown, workers=workers) as kept:  # deformed once
         shown.status(f"writing {output} ({len(animation)} frames as morph targets)")
         _write_glb(output, kept, unit)
         _write_extra_outputs(kept, stream, obj_sequence, csv, shown, capture)

@@ -21,6 +21,7 @@ faceanim: rendering the preview (3 frames)...
 
 from __future__ import annotations
 
+import copy
 import sys
 from collections.abc import Iterable
 
@@ -74,6 +75,13 @@ class Progress:
             return self._watched(tqdm(iterable, total=total, desc=desc, unit=unit, file=self.stream))
         self.status(f"{desc} ({total} {unit}s)" if total else desc)
         return self._watched(iterable)
+
+    def stopped_by(self, stop: list) -> Progress:
+        """This progress for work in another thread, which the command line's signals do not reach:
+        its loops stop (:class:`Interrupted`) at the next item once ``stop`` holds a signal number."""
+        clone = copy.copy(self)
+        clone._interrupts = stop
+        return clone
 
     def _watched(self, iterable: Iterable) -> Iterable:
         """``iterable``, stopped by :class:`Interrupted` at the next item once ``interrupts`` (the list

@@ -11,6 +11,10 @@ there: the frames cost disk (0.3 MB a frame on that head), not memory, and are d
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
+import os
+import pickle
+import signal
 from collections.abc import Callable, Iterator
 
 import numpy as np
@@ -19,12 +23,14 @@ from ..framestore import FrameStore
 from ..validation import as_array
 from .mesh import Mesh
 
-__all__ = ["Animation", "FrameSource", "spilled"]
+__all__ = ["Animation", "FrameSource", "default_workers", "made_in_parallel", "spilled"]
 
 FrameSource = Callable[[int, int], np.ndarray]
 """``frames(start, stop)`` -> positions ``(stop - start, V, 3)`` float64 of frames ``start .. stop - 1``."""
 
 CHUNK = 32  # frames made at once when streaming: a few tens of MB on a dense head
+PARALLEL_RUN = 8  # frames a process making them in parallel makes at a time (runs differ in cost)
+MOST_WORKERS = 4  # each holds a run of frames' working arrays besides what it shares with the job
 
 
 class Animation:
@@ -118,7 +124,7 @@ class Animation:
 
 
 @contextlib.contextmanager
-def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "deforming"):
+def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "deforming", workers: int = 1):
     """Yield ``animation`` with its frames made once and kept in a temporary file, read back in chunks.
 
     The file holds each frame's displacement from the rest as float32 (what a glTF file keeps, to
@@ -127,6 +133,9 @@ def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "de
     output's folder: the disk the results go to), else the system's temporary folder (``TMPDIR``;
     where that is a tmpfs, the frames cost memory after all). A held animation is yielded as it is.
     ``progress`` (a :class:`~faceanim.progress.Progress`) shows the frames being made, as ``desc``.
+    ``workers``: processes making the frames, each a run of :data:`PARALLEL_RUN` frames at a time (see
+    :func:`made_in_parallel`); the frames are the same whatever their number, to float32's rounding
+    (a deformer's float64 sums over runs of other lengths can round differently in the last place).
 
     >>> mesh = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
     >>> made = []
@@ -145,7 +154,95 @@ def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "de
         return
     rest = animation.mesh.vertices
     with FrameStore(rest.shape, folder=folder) as store:
-        for frame in as_progress(progress).bar(animation.frames(), total=len(animation), desc=desc):
-            store.append(frame - rest)
+        if workers > 1 and len(animation) > PARALLEL_RUN and "fork" in multiprocessing.get_all_start_methods():
+            store.reserve(len(animation))
+            for _ in as_progress(progress).bar(made_in_parallel(animation, store, workers), total=len(animation),
+                                               desc=desc):
+                pass
+        else:
+            for frame in as_progress(progress).bar(animation.frames(), total=len(animation), desc=desc):
+                store.append(frame - rest)
         yield Animation.streamed(animation.mesh, lambda start, stop: rest + store[start:stop], len(animation),
                                  animation.fps)
+
+
+def default_workers() -> int:
+    """The processes the jobs give :func:`spilled`: the CPUs this process may run on, at most
+    :data:`MOST_WORKERS`."""
+    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(MOST_WORKERS, usable))
+
+
+def made_in_parallel(animation: Animation, store: FrameStore, workers: int) -> Iterator[None]:
+    """Makes ``animation``'s frames into ``store`` (reserved to its length) as displacements from the
+    rest, in this process and ``workers - 1`` forked ones, each taking the next run of :data:`PARALLEL_RUN`
+    frames as it finishes one (runs differ in cost: a frame that folds is relaxed); yields once per
+    frame made, by any of them, as they are made.
+
+    Forked, not spawned: a worker starts with the frame source as it stands (a deformer whose set-up
+    took seconds) instead of building it again, and writes its runs straight into the store's file.
+    A worker's error is raised here; an interruption here stops the workers.
+    """
+    context = multiprocessing.get_context("fork")
+    claimed = context.Value("q", 0)  # runs handed out
+    made = context.Value("q", 0)  # frames written
+    failures = context.SimpleQueue()
+    rest = animation.mesh.vertices
+    runs = -(-len(animation) // PARALLEL_RUN)
+
+    def one_run() -> bool:
+        with claimed.get_lock():
+            run = claimed.value
+            claimed.value += 1
+        if run >= runs:
+            return False
+        start, stop = run * PARALLEL_RUN, min((run + 1) * PARALLEL_RUN, len(animation))
+        store[start:stop] = animation.chunk(start, stop) - rest
+        with made.get_lock():
+            made.value += stop - start
+        return True
+
+    def work() -> None:
+        # The parent decides when to stop: a Ctrl-C reaches it, and it ends the workers.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            while one_run():
+                pass
+        except BaseException as error:  # noqa: BLE001 - carried to the parent, which raises it
+            failures.put(_carried(error))
+            raise SystemExit(1) from None
+
+    helpers = [context.Process(target=work, daemon=True) for _ in range(workers - 1)]
+    for helper in helpers:
+        helper.start()
+    told = 0
+    try:
+        while True:
+            more = one_run() if failures.empty() else False
+            for _ in range(made.value - told):
+                yield
+            told = made.value
+            if not more and not any(helper.is_alive() for helper in helpers):
+                break
+            if not more:  # the helpers' last runs
+                helpers[0].join(0.05)
+        if not failures.empty():
+            raise failures.get()
+        ended = [helper.exitcode for helper in helpers if helper.exitcode != 0]
+        if ended or made.value != len(animation):
+            raise RuntimeError(f"a process making the frames ended with exit code {ended[0] if ended else 0} "
+                               f"after {made.value} of {len(animation)} frames")
+    finally:
+        for helper in helpers:
+            if helper.is_alive():
+                helper.terminate()
+            helper.join()
+
+
+def _carried(error: BaseException) -> BaseException:
+    """``error`` as it can be sent to another process: itself if it pickles, else its words."""
+    try:
+        pickle.dumps(error)
+    except Exception:  # noqa: BLE001 - any failure to pickle is answered the same way
+        return RuntimeError(f"{type(error).__name__}: {error}")
+    return error
