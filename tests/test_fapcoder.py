@@ -547,6 +547,14 @@ def test_decompress_through_a_speaker_model_fills_in_the_faps_not_sent(tmp_path,
     assert code == 0, err
     expected = read_speaker(tmp_path / "s.npz").regularise(read_fba(tmp_path / "s.fba"), quant=1.0)
     np.testing.assert_allclose(read_fap(tmp_path / "alone.fap").values, np.round(expected.values), atol=1)
+    # too few of the model's FAPs sent to determine its parameters: refused, named by the files given
+    assert run_cli(capsys, "fap-compress", tmp_path / "speech.fap", "-o", tmp_path / "few.fba", "--faps",
+                   "3,14,16")[0] == 0
+    code, out, err = run_cli(capsys, "fap-decompress", tmp_path / "few.fba", "-o", tmp_path / "few.fap", "--speaker",
+                             tmp_path / "s.npz")
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"{tmp_path / 'few.fba'} with --speaker {tmp_path / 's.npz'}: the FAP stream" in err
+    assert "carries at most 3 of the speaker model's" in err and not (tmp_path / "few.fap").exists()
 
 
 def test_decompress_through_a_version_1_speaker_model_decodes_frame_by_frame(tmp_path):

@@ -539,9 +539,11 @@ def test_decode_refuses_a_bad_speaker_file_and_a_too_small_subset(built, capsys,
     from faceanim.mpeg4.fapfile import write_fap
 
     write_fap(tmp_path / "few.fap", subset(model.to_faps(np.zeros((2, 6))), [3, 14, 16]))
+    few = tmp_path / "few.fap"
     for speaker, match in ((tmp_path / "bad.npz", "is not a speaker model"),
-                           (built / "man.npz", "carries at most 3 of the speaker model's 34 FAPs")):
-        code = main(["decode", str(tmp_path / "few.fap"), "-o", str(tmp_path / "o.glb"), "--speaker", str(speaker)])
+                           (built / "man.npz", f"{few} with --speaker {built / 'man.npz'}: the FAP stream ")):
+        code = main(["decode", str(few), "-o", str(tmp_path / "o.glb"), "--speaker", str(speaker)])
         err = capsys.readouterr().err
         assert code == 2 and match in err and err.count("\n") == 1
+        assert "is not a speaker model" in err or "carries at most 3 of the speaker model's 34 FAPs" in err
         assert not (tmp_path / "o.glb").exists()

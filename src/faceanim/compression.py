@@ -8,6 +8,7 @@ complete or not at all.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -174,7 +175,7 @@ def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None
             frames += len(piece)
             active |= piece.mask.any(axis=0)
 
-    with atomic_output(output) as tmp, open(tmp, "w", encoding="utf-8") as handle:
+    with atomic_output(output) as tmp, open(tmp, "w", encoding="utf-8") as handle, _named_by(source, speaker):
         handle.write(fap_header_line(output, decoder.name, decoder.fps, decoder.frame_count) + "\n")
         for piece in pieces:
             if model is not None and interpret is None:  # at the first packet: its length is the window
@@ -186,6 +187,18 @@ def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None
         if interpret is not None:
             write(handle, interpret.finish())
     return DecompressionResult(frames=frames, fps=decoder.fps, faps=tuple(int(c) + 1 for c in np.flatnonzero(active)))
+
+
+@contextlib.contextmanager
+def _named_by(source, speaker):
+    """The speaker model's refusal of the stream (too few of its FAPs on a frame) named by the files
+    given, not by the stream's own name inside."""
+    try:
+        yield
+    except InputError as error:
+        if speaker is None or str(error).startswith(str(source)):
+            raise
+        raise InputError(f"{source} with --speaker {speaker}: {error}") from None
 
 
 @dataclass(frozen=True)

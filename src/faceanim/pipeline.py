@@ -364,7 +364,11 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     if speaker is not None:
         from .speaker import read_speaker
 
-        stream = read_speaker(speaker).regularise(stream)
+        model = read_speaker(speaker)
+        try:
+            stream = model.regularise(stream)
+        except InputError as error:  # named by the files given, not by the stream's own name inside
+            raise InputError(f"{fap_path} with --speaker {speaker}: {error}") from None
     target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
     shown.status(f"playing {len(stream)} frames of FAPs on the target ({len(target.mesh.vertices):,} vertices)")
     animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
