@@ -740,4 +740,4 @@ def fap_psnr(original: FapStream, decoded: FapStream, *, faps: Sequence[int] | N
     spread = float(truth.max() - truth.min())
     if rms == 0:
         return float("inf")
-    return 20 * np.log10(spread / rms) if spread > 0 else float("-inf")
+    return float(20 * np.log10(spread / rms)) if spread > 0 else float("-inf")
