@@ -194,3 +194,40 @@ def test_image_folder_is_a_sequence(tmp_path):
     track = track_video(tmp_path, progress=False)
     assert len(track) == 5 and track.valid.all() and track.fps == 25.0
     np.testing.assert_allclose(track.times, np.arange(5) / 25.0)
+
+
+def test_mediapipes_notices_are_silenced_by_two_threads_at_once_and_stderr_comes_back():
+    """``animate`` builds the placement's graph while the video's runs in another thread. Each thread
+    saving and restoring descriptor 2 on its own left it on /dev/null for good (every error after,
+    and the final 'interrupted', went nowhere)."""
+    import os
+    import threading
+
+    from faceanim.capture.tracker import _native_stderr
+
+    before = os.fstat(2)
+    null = os.stat(os.devnull)
+    first_in, second_in, first_out = threading.Event(), threading.Event(), threading.Event()
+    seen = {}
+
+    def first():
+        with _native_stderr.silenced():
+            first_in.set()
+            second_in.wait(5)
+        first_out.set()
+
+    def second():
+        first_in.wait(5)
+        with _native_stderr.silenced():
+            second_in.set()
+            first_out.wait(5)
+            seen["inside"] = os.fstat(2)
+
+    threads = [threading.Thread(target=first), threading.Thread(target=second)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(10)
+    assert (seen["inside"].st_rdev, seen["inside"].st_ino) == (null.st_rdev, null.st_ino)  # still silenced
+    after = os.fstat(2)
+    assert (after.st_dev, after.st_ino) == (before.st_dev, before.st_ino)  # and back where it was

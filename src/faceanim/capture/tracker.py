@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -44,25 +45,55 @@ class TrackerOptions:
             raise ValueError(f"max_faces must be at least 1, got {self.max_faces}")
 
 
-@contextlib.contextmanager
-def _native_stderr_silenced():
+class _NativeStderr:
     """MediaPipe's C++ side (TFLite, absl) prints set-up notices straight to file descriptor 2, which
-    no Python setting reaches; they come when a graph is built and on its first frame. Point the
-    descriptor at /dev/null for just those moments."""
-    try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError):  # no real descriptor (an embedding host): nothing to silence
-        yield
-        return
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, 2)
-        yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-        os.close(devnull)
+    no Python setting reaches; they come when a graph is built and on its first frame. :meth:`silenced`
+    points the descriptor at /dev/null for just those moments.
+
+    Shared by threads: ``animate`` builds the placement's graph while the video's is running in
+    another thread. Each saving and restoring the descriptor on its own, the second saved the first's
+    /dev/null and put it back last, and every error and the final "interrupted" went nowhere. So the
+    first to enter redirects, the last to leave restores."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._inside = 0
+        self._saved: int | None = None
+
+    @contextlib.contextmanager
+    def silenced(self):
+        with self._lock:
+            if self._inside == 0:
+                self._saved = self._redirected()
+            self._inside += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._inside -= 1
+                if self._inside == 0 and self._saved is not None:
+                    os.dup2(self._saved, 2)
+                    os.close(self._saved)
+                    self._saved = None
+
+    @staticmethod
+    def _redirected() -> int | None:
+        """Descriptor 2 pointed at /dev/null; its old target kept as a new descriptor (None where there
+        is no real descriptor, an embedding host: nothing is silenced)."""
+        try:
+            sys.stderr.flush()
+            saved = os.dup(2)
+        except (OSError, ValueError):
+            return None
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(devnull, 2)
+        finally:
+            os.close(devnull)
+        return saved
+
+
+_native_stderr = _NativeStderr()
 
 
 class FaceTracker:
@@ -123,7 +154,7 @@ class FaceTracker:
         from ..errors import InputError
 
         try:
-            with _native_stderr_silenced():
+            with _native_stderr.silenced():
                 return vision.FaceLandmarker.create_from_options(settings)
         except (RuntimeError, ValueError) as exc:
             raise InputError(f"{self.model}: not a MediaPipe face landmarker model ({exc})") from None
@@ -144,7 +175,7 @@ class FaceTracker:
         image = self._image(image_format=self._format, data=np.ascontiguousarray(rgb))
         if self._mesh is None:
             self._start(image)
-            with _native_stderr_silenced():  # the first frame brings TFLite's notices
+            with _native_stderr.silenced():  # the first frame brings TFLite's notices
                 result = self._detect(image, time)
         else:
             result = self._detect(image, time)
