@@ -140,3 +140,20 @@ def test_an_error_in_a_process_making_frames_is_raised_and_nothing_is_kept(tmp_p
         with spilled(Animation.streamed(mesh, broken, 6 * PARALLEL_RUN, 25.0), folder=tmp_path, workers=2):
             pytest.fail("the frames were yielded although some could not be made")
     assert list(tmp_path.iterdir()) == []  # the store has no name: nothing is left behind
+
+
+def test_a_workers_error_reaches_the_job_as_the_kind_the_command_reports_in_one_line():
+    """A FileFormatError (whose constructor takes a path and a message) and the command's Interrupted
+    do not unpickle as they are; they are carried as the nearest class that does, words kept, with the
+    worker's traceback as a note."""
+    import pickle
+
+    from faceanim.errors import FileFormatError, InputError
+    from faceanim.geometry.animation import _carried
+    from faceanim.progress import Interrupted
+
+    for error, kind in ((FileFormatError("head.obj", "no faces", line=3), InputError),
+                        (Interrupted(15), KeyboardInterrupt), (ValueError("bad frame"), ValueError)):
+        carried = pickle.loads(pickle.dumps(_carried(error, "Traceback: here")))
+        assert isinstance(carried, kind) and str(carried) == str(error)
+        assert "Traceback: here" in carried.__notes__[0]

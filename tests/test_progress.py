@@ -98,3 +98,32 @@ def test_work_beside_the_job_stops_at_its_next_frame_when_the_job_fails():
     assert 0 < len(seen) < 10_000
     assert pipeline._beside(lambda: "placed", lambda shown: list(shown.bar(range(3), desc="t")), Quiet()) == \
         ("placed", [0, 1, 2])
+
+
+def test_an_interrupt_while_the_job_waits_for_the_work_beside_it_stops_that_work():
+    """The placement is usually done first; a Ctrl-C then lands while ``animate`` waits for the
+    tracking, which must stop at its next frame (and not run on through the video)."""
+    import signal
+    import threading
+    import time
+
+    seen = []
+
+    def tracking(shown):
+        for i in shown.bar(range(20_000), total=20_000, desc="tracking"):
+            seen.append(i)
+            time.sleep(0.001)
+
+    def interrupted(signum, frame):
+        raise Interrupted(signum)
+
+    before = signal.signal(signal.SIGALRM, interrupted)
+    signal.setitimer(signal.ITIMER_REAL, 0.3)
+    try:
+        with pytest.raises(Interrupted):
+            pipeline._beside(lambda: "placed", tracking, Quiet(interrupts=[]))
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, before)
+    assert 0 < len(seen) < 20_000
+    assert not [t for t in threading.enumerate() if t.name.startswith("faceanim")]  # the thread has ended

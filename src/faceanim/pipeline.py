@@ -297,19 +297,22 @@ def _preview(path, animation, target, progress, *, source_frames=None, size: int
 def _beside(main, other, progress):
     """``(main(), other(progress))``, ``other`` run in a thread meanwhile: the video's tracking keeps
     one core busy (MediaPipe's graph, frame after frame) while the target's placement and parts can
-    take another. An error of ``main`` (a bad ``--parts`` file, a face of no human size) stops
-    ``other`` at its next frame and is raised; ``other``'s own is raised once ``main`` is done."""
+    take another. An error of ``main`` (a bad ``--parts`` file, a face of no human size), or an
+    interrupt while ``other`` is waited for, stops ``other`` at its next frame and is raised;
+    ``other``'s own error is raised once ``main`` is done."""
     from concurrent.futures import ThreadPoolExecutor
 
     stop: list[int] = []
-    with ThreadPoolExecutor(1, thread_name_prefix="faceanim") as pool:
+    pool = ThreadPoolExecutor(1, thread_name_prefix="faceanim")
+    try:
         running = pool.submit(other, progress.stopped_by(stop))
-        try:
-            done = main()
-        except BaseException:
-            stop.append(signal.SIGINT)
-            raise
-    return done, running.result()
+        done = main()
+        return done, running.result()
+    except BaseException as error:
+        stop.append(getattr(error, "signum", signal.SIGINT))
+        raise
+    finally:
+        pool.shutdown(wait=True)
 
 
 def _workers(workers) -> int:

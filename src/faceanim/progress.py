@@ -78,9 +78,10 @@ class Progress:
 
     def stopped_by(self, stop: list) -> Progress:
         """This progress for work in another thread, which the command line's signals do not reach:
-        its loops stop (:class:`Interrupted`) at the next item once ``stop`` holds a signal number."""
+        its loops stop (:class:`Interrupted`) at the next item once ``stop`` holds a signal number, or
+        the interrupts this one watches do."""
         clone = copy.copy(self)
-        clone._interrupts = stop
+        clone._interrupts = stop if self._interrupts is None else _EitherList(self._interrupts, stop)
         return clone
 
     def _watched(self, iterable: Iterable) -> Iterable:
@@ -97,6 +98,19 @@ class Progress:
             if self._interrupts:
                 raise Interrupted(self._interrupts[0])
             yield item
+
+
+class _EitherList:
+    """Two lists of received signals read as one (true once either holds one; the first's first)."""
+
+    def __init__(self, *lists: list):
+        self._lists = lists
+
+    def __bool__(self) -> bool:
+        return any(self._lists)
+
+    def __getitem__(self, index: int):
+        return next(signals for signals in self._lists if signals)[index]
 
 
 class Interrupted(KeyboardInterrupt):

@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import multiprocessing.connection
 import os
 import pickle
 import signal
+import traceback
 from collections.abc import Callable, Iterator
 
 import numpy as np
@@ -23,7 +25,7 @@ from ..framestore import FrameStore
 from ..validation import as_array
 from .mesh import Mesh
 
-__all__ = ["Animation", "FrameSource", "default_workers", "made_in_parallel", "spilled"]
+__all__ = ["Animation", "FrameSource", "default_workers", "spilled"]
 
 FrameSource = Callable[[int, int], np.ndarray]
 """``frames(start, stop)`` -> positions ``(stop - start, V, 3)`` float64 of frames ``start .. stop - 1``."""
@@ -134,7 +136,7 @@ def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "de
     where that is a tmpfs, the frames cost memory after all). A held animation is yielded as it is.
     ``progress`` (a :class:`~faceanim.progress.Progress`) shows the frames being made, as ``desc``.
     ``workers``: processes making the frames, each a run of :data:`PARALLEL_RUN` frames at a time (see
-    :func:`made_in_parallel`); the frames are the same whatever their number, to float32's rounding
+    :func:`_made_in_parallel`); the frames are the same whatever their number, to float32's rounding
     (a deformer's float64 sums over runs of other lengths can round differently in the last place).
 
     >>> mesh = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
@@ -149,6 +151,8 @@ def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "de
     """
     from ..progress import as_progress
 
+    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
+        raise ValueError(f"workers must be a whole number of at least 1, got {workers!r}")
     if not animation.is_streamed:
         yield animation
         return
@@ -156,9 +160,9 @@ def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "de
     with FrameStore(rest.shape, folder=folder) as store:
         if workers > 1 and len(animation) > PARALLEL_RUN and "fork" in multiprocessing.get_all_start_methods():
             store.reserve(len(animation))
-            for _ in as_progress(progress).bar(made_in_parallel(animation, store, workers), total=len(animation),
-                                               desc=desc):
-                pass
+            with contextlib.closing(_made_in_parallel(animation, store, workers)) as making:
+                for _ in as_progress(progress).bar(making, total=len(animation), desc=desc):
+                    pass
         else:
             for frame in as_progress(progress).bar(animation.frames(), total=len(animation), desc=desc):
                 store.append(frame - rest)
@@ -173,15 +177,17 @@ def default_workers() -> int:
     return max(1, min(MOST_WORKERS, usable))
 
 
-def made_in_parallel(animation: Animation, store: FrameStore, workers: int) -> Iterator[None]:
+def _made_in_parallel(animation: Animation, store: FrameStore, workers: int) -> Iterator[None]:
     """Makes ``animation``'s frames into ``store`` (reserved to its length) as displacements from the
-    rest, in this process and ``workers - 1`` forked ones, each taking the next run of :data:`PARALLEL_RUN`
-    frames as it finishes one (runs differ in cost: a frame that folds is relaxed); yields once per
-    frame made, by any of them, as they are made.
+    rest, in this process and ``workers - 1`` forked ones, each taking the next run of
+    :data:`PARALLEL_RUN` frames as it finishes one (runs differ in cost: a frame that folds is
+    relaxed); yields once per frame made, by any of them, as they are made.
 
     Forked, not spawned: a worker starts with the frame source as it stands (a deformer whose set-up
     took seconds) instead of building it again, and writes its runs straight into the store's file.
-    A worker's error is raised here; an interruption here stops the workers.
+    A worker's error (with its traceback as a note) is raised here and stops the others at once; so
+    does an interruption here, or this process's end (a worker whose parent is gone stops at its
+    next run). A worker killed from outside (the kernel's out-of-memory killer) is an ``OSError``.
     """
     context = multiprocessing.get_context("fork")
     claimed = context.Value("q", 0)  # runs handed out
@@ -189,12 +195,18 @@ def made_in_parallel(animation: Animation, store: FrameStore, workers: int) -> I
     failures = context.SimpleQueue()
     rest = animation.mesh.vertices
     runs = -(-len(animation) // PARALLEL_RUN)
+    parent = os.getpid()
+
+    def stop_claiming() -> None:
+        with claimed.get_lock():
+            claimed.value = runs
 
     def one_run() -> bool:
         with claimed.get_lock():
             run = claimed.value
             claimed.value += 1
-        if run >= runs:
+        orphaned = os.getpid() != parent and os.getppid() != parent  # a worker whose job was killed outright
+        if run >= runs or orphaned:
             return False
         start, stop = run * PARALLEL_RUN, min((run + 1) * PARALLEL_RUN, len(animation))
         store[start:stop] = animation.chunk(start, stop) - rest
@@ -203,46 +215,75 @@ def made_in_parallel(animation: Animation, store: FrameStore, workers: int) -> I
         return True
 
     def work() -> None:
-        # The parent decides when to stop: a Ctrl-C reaches it, and it ends the workers.
+        # The parent decides when to stop: a Ctrl-C reaches it too, and it ends the workers; SIGTERM
+        # (its way of ending them) ends a worker where it stands, not through the command's handler.
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPPING)
         try:
             while one_run():
                 pass
         except BaseException as error:  # noqa: BLE001 - carried to the parent, which raises it
-            failures.put(_carried(error))
+            stop_claiming()
+            failures.put(_carried(error, traceback.format_exc()))
             raise SystemExit(1) from None
 
     helpers = [context.Process(target=work, daemon=True) for _ in range(workers - 1)]
-    for helper in helpers:
-        helper.start()
+    # No signal between the fork and the worker's own handlers: the command's would run in the worker.
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPPING)
+    try:
+        for helper in helpers:
+            helper.start()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
     told = 0
     try:
-        while True:
-            more = one_run() if failures.empty() else False
-            for _ in range(made.value - told):
+        failed = None
+        while failed is None:
+            more = one_run()
+            if not failures.empty():  # read at once: a large error would fill the pipe and hold its worker
+                failed = failures.get()
+            now = made.value
+            for _ in range(now - told):
                 yield
-            told = made.value
-            if not more and not any(helper.is_alive() for helper in helpers):
+            told = now
+            alive = [helper.sentinel for helper in helpers if helper.is_alive()]
+            if not more and not alive:
                 break
-            if not more:  # the helpers' last runs
-                helpers[0].join(0.05)
-        if not failures.empty():
-            raise failures.get()
-        ended = [helper.exitcode for helper in helpers if helper.exitcode != 0]
-        if ended or made.value != len(animation):
-            raise RuntimeError(f"a process making the frames ended with exit code {ended[0] if ended else 0} "
-                               f"after {made.value} of {len(animation)} frames")
+            if not more:  # the workers' last runs
+                multiprocessing.connection.wait(alive, 0.05)
+        if failed is None and not failures.empty():
+            failed = failures.get()
+        if failed is not None:
+            raise failed
+        killed = next((-h.exitcode for h in helpers if h.exitcode is not None and h.exitcode < 0), None)
+        if killed is not None or made.value != len(animation):
+            cause = f"was killed by {signal.Signals(killed).name}" if killed else "ended"
+            raise OSError(f"a process making the frames {cause} after {made.value} of {len(animation)} frames "
+                          "(out of memory? workers=1 deforms in one process)")
     finally:
+        stop_claiming()
         for helper in helpers:
             if helper.is_alive():
                 helper.terminate()
             helper.join()
 
 
-def _carried(error: BaseException) -> BaseException:
-    """``error`` as it can be sent to another process: itself if it pickles, else its words."""
-    try:
-        pickle.dumps(error)
-    except Exception:  # noqa: BLE001 - any failure to pickle is answered the same way
-        return RuntimeError(f"{type(error).__name__}: {error}")
-    return error
+_STOPPING = {signal.SIGINT, signal.SIGTERM}
+
+
+def _carried(error: BaseException, where: str) -> BaseException:
+    """``error`` as it can be sent to another process and raised there, with the worker's traceback
+    ``where`` as a note: itself if it pickles and unpickles, else the nearest of its classes that
+    does, with its words (an :class:`~faceanim.errors.InputError` stays one, so the command still
+    says it in one line)."""
+    for kind in type(error).__mro__:
+        candidate = error if kind is type(error) else None
+        try:
+            candidate = candidate if candidate is not None else kind(str(error))
+            pickle.loads(pickle.dumps(candidate))
+        except Exception:  # noqa: BLE001 - any class that cannot make the trip is passed over
+            continue
+        candidate.add_note(f"in a process making the frames:\n{where}")
+        return candidate
+    return RuntimeError(str(error))

@@ -222,7 +222,8 @@ def _settled_near(mesh: Mesh, points, tri_corners, best_d, best_f, best_bary) ->
             best_d[who[better]] = d[first][better]
             best_f[who[better]] = faces[first][better]
             best_bary[who[better]] = bary[first][better]
-    return np.flatnonzero(bound > near)
+    # The far points, and any the bound left unsettled (a rounding at a degenerate sliver), search on.
+    return np.flatnonzero(~np.isfinite(best_d))
 
 
 def _near_index(mesh: Mesh):
