@@ -157,3 +157,13 @@ def test_a_workers_error_reaches_the_job_as_the_kind_the_command_reports_in_one_
         carried = pickle.loads(pickle.dumps(_carried(error, "Traceback: here")))
         assert isinstance(carried, kind) and str(carried) == str(error)
         assert "Traceback: here" in carried.__notes__[0]
+
+
+@pytest.mark.parametrize("workers", [0, 2.5, True])
+def test_a_bad_number_of_workers_is_refused(tmp_path, workers):
+    from faceanim.geometry.animation import spilled
+
+    mesh = wave_mesh()
+    with pytest.raises(ValueError, match="workers must be a whole number"):
+        with spilled(Animation.streamed(mesh, wave_source(mesh), 20, 25.0), folder=tmp_path, workers=workers):
+            pass
