@@ -86,15 +86,12 @@ class TeethContact:
         self.parts = parts
         self.lips = np.zeros(0, dtype=np.int64)
         self.sets: list[_RigidSet] = []
-        names = [n for n in INNER_LIP_POINTS if n in target.points]
-        if not names or not {"8.3", "8.4"} <= target.points.keys():
+        if not any(n in target.points for n in INNER_LIP_POINTS) or not {"8.3", "8.4"} <= target.points.keys():
             return
         rest = target.mesh.vertices
-        corners = rest[target.ids(["8.3", "8.4"])]
-        self.reach = 0.12 * np.linalg.norm(corners[0] - corners[1])
+        self.reach = _lip_reach(target)
         skin_ids = np.asarray(skin_ids, dtype=np.int64)
-        near = cKDTree(rest[target.ids(names)]).query(rest[skin_ids], distance_upper_bound=self.reach)[0] < np.inf
-        self.lips = np.flatnonzero(near)
+        self.lips = np.flatnonzero(_lip_skin(target, skin_ids, self.reach))
         self.lip_rest = rest[skin_ids[self.lips]]
         for role, share in (("upper_teeth", 0.0), ("lower_teeth", 1.0)):
             # The teeth a lip can reach: those within a few reaches of the lips at rest (the front).
@@ -154,6 +151,21 @@ class TeethContact:
         return pushed
 
 
+def _lip_reach(target: Target) -> float:
+    """How far from the inner-lip points the lips reach: 0.12 of the mouth's width (8.3 to 8.4)."""
+    corners = target.mesh.vertices[target.ids(["8.3", "8.4"])]
+    return float(0.12 * np.linalg.norm(corners[0] - corners[1]))
+
+
+def _lip_skin(target: Target, skin_ids: np.ndarray, reach: float) -> np.ndarray:
+    """``(S,) bool``: the skin within ``reach`` of the target's inner-lip points."""
+    names = [n for n in INNER_LIP_POINTS if n in target.points]
+    if not names:
+        return np.zeros(len(skin_ids), dtype=bool)
+    rest = target.mesh.vertices
+    return cKDTree(rest[target.ids(names)]).query(rest[skin_ids], distance_upper_bound=reach)[0] < np.inf
+
+
 class TeethCover:
     """The skin that covers the rigid teeth at rest (the teeth straight behind it, seen from ahead of
     the face, and none in front), and where in a frame the teeth have come through it.
@@ -177,10 +189,10 @@ class TeethCover:
         if not {"8.3", "8.4"} <= target.points.keys():
             return
         rest = target.mesh.vertices
-        corners = rest[target.ids(["8.3", "8.4"])]
-        reach = 0.12 * np.linalg.norm(corners[0] - corners[1])
+        reach = _lip_reach(target)
         look = _LOOK * reach
         skin_rest = self.skin_rest = rest[skin_ids]
+        lips = _lip_skin(target, skin_ids, reach)
         for role, share in (("upper_teeth", 0.0), ("lower_teeth", 1.0)):
             teeth = parts.mask(role) & (parts.jaw_weight == share)
             surface = submesh(target.mesh, teeth)[0] if teeth.any() else None
@@ -193,6 +205,13 @@ class TeethCover:
             behind = sight.furthest(skin_rest[near], -1.0, look) > 0
             clear = sight.furthest(skin_rest[near], 1.0, look) == 0
             covering = near[behind & clear]
+            if share == 0.0:
+                # In front of the upper teeth, only the lips: they alone reach past the crowns (pursed,
+                # rolled in). The skin above them lies on the gums, which it grazes as the lip is raised;
+                # put back at rest there, it dropped d18's raised upper lip over the teeth it bared and
+                # tore its corners (onto the ICT head, frames 90-100). The lower teeth are watched whole:
+                # the jaw's turn carries skin behind them where no control point holds it (d6).
+                covering = covering[lips[covering]]
             if not len(covering):
                 continue
             # Skin that moved (in the set's frame) well short of its distance from the teeth has not
