@@ -474,6 +474,29 @@ def test_teeth_cover_sees_skin_carried_behind_the_teeth(ict):
     assert hidden[1, covering].mean() > 0.8
 
 
+def test_in_front_of_the_upper_teeth_the_cover_watches_the_lips_only(ict):
+    """The skin above the upper lip lies on the gums and grazes them as the lip is raised; watched, it
+    was put back at rest over the teeth the raised lip bared (d18 onto ICT, frames 90-100). Carried
+    back through the upper teeth, the lips are seen; the skin above them is not looked at."""
+    from faceanim.retarget.contact import TeethContact, TeethCover
+
+    target, parts = ict
+    skin_ids = np.flatnonzero(parts.mask("skin"))
+    cover = TeethCover(target, parts, skin_ids)
+    lips = set(TeethContact(target, parts, skin_ids).lips.tolist())
+    upper = [s for s in cover.sets if s.turn_share == 0.0]
+    assert len(upper) == 1 and len(upper[0].covering) > 20
+    assert set(upper[0].covering.tolist()) <= lips
+    rest = target.mesh.vertices[skin_ids]
+    above = np.flatnonzero((rest - rest[list(lips)].mean(axis=0)) @ parts.axes[1] > 0)
+    field = np.zeros((1, len(skin_ids), 3))
+    field[0] = -1.5 * parts.axes[2]  # everything carried back through the teeth
+    hidden = cover(field, np.zeros(1))[0]
+    lower = next(s.covering for s in cover.sets if s.turn_share == 1.0)
+    assert hidden[upper[0].covering].mean() > 0.5
+    assert not hidden[np.setdiff1d(np.setdiff1d(above, list(lips)), lower)].any()
+
+
 def test_skin_carried_behind_the_lower_teeth_is_put_back_in_front(ict):
     """d6 onto ICT, frame 789, in small: the skin below the lower lip, interpolated between a lip that
     follows the jaw only partly and a chin that follows it fully, ended up behind the lower teeth,
