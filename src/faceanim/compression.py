@@ -8,7 +8,6 @@ complete or not at all.
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -149,6 +148,7 @@ def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None
     from .atomic import atomic_output
     from .mpeg4.fapcoder import read_fba_pieces
     from .mpeg4.fapfile import fap_frame_lines, fap_header_line
+    from .speaker.speakerfile import refusals_named
 
     output = Path(output)
     check_outputs({"-o": (output, ".fap")}, inputs={"IN.fba": source, "--speaker": speaker})
@@ -175,7 +175,7 @@ def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None
             frames += len(piece)
             active |= piece.mask.any(axis=0)
 
-    with atomic_output(output) as tmp, open(tmp, "w", encoding="utf-8") as handle, _named_by(source, speaker):
+    with atomic_output(output) as tmp, open(tmp, "w", encoding="utf-8") as handle, refusals_named(source, speaker):
         handle.write(fap_header_line(output, decoder.name, decoder.fps, decoder.frame_count) + "\n")
         for piece in pieces:
             if model is not None and interpret is None:  # at the first packet: its length is the window
@@ -187,18 +187,6 @@ def fap_decompress(source, output, *, speaker=None, temporal: bool | None = None
         if interpret is not None:
             write(handle, interpret.finish())
     return DecompressionResult(frames=frames, fps=decoder.fps, faps=tuple(int(c) + 1 for c in np.flatnonzero(active)))
-
-
-@contextlib.contextmanager
-def _named_by(source, speaker):
-    """The speaker model's refusal of the stream (too few of its FAPs on a frame) named by the files
-    given, not by the stream's own name inside."""
-    try:
-        yield
-    except InputError as error:
-        if speaker is None or str(error).startswith(str(source)):
-            raise
-        raise InputError(f"{source} with --speaker {speaker}: {error}") from None
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,8 @@ from .appearance import Appearance, read_appearance, write_appearance
 from .build import METHODS, build_model, mobile_names, reconstruction_error
 from .colour import ColourModel
 from .model import DEFAULT_RIDGE, SpeakerModel, fap_measurement
-from .speakerfile import SPEAKER_VERSION, read_speaker, write_speaker
+from .speakerfile import SPEAKER_VERSION, read_speaker, refusals_named, write_speaker
 
 __all__ = ["SpeakerModel", "build_model", "mobile_names", "reconstruction_error", "fap_measurement", "read_speaker",
-           "write_speaker", "DEFAULT_RIDGE", "METHODS", "SPEAKER_VERSION",
+           "refusals_named", "write_speaker", "DEFAULT_RIDGE", "METHODS", "SPEAKER_VERSION",
            "Appearance", "ColourModel", "read_appearance", "write_appearance", "CloneAnalyser", "analysis_mesh"]

@@ -13,6 +13,7 @@ before, and asking it for the temporal prior is refused in one line. Other versi
 
 from __future__ import annotations
 
+import contextlib
 import zipfile
 from pathlib import Path
 
@@ -23,7 +24,7 @@ from ..errors import FileFormatError, InputError
 from ..mpeg4 import Fapu
 from .model import SpeakerModel
 
-__all__ = ["read_speaker", "write_speaker", "SPEAKER_VERSION"]
+__all__ = ["read_speaker", "write_speaker", "refusals_named", "SPEAKER_VERSION"]
 
 SPEAKER_VERSION = 2
 _READABLE = (1, 2)
@@ -119,3 +120,16 @@ def read_speaker(path) -> SpeakerModel:
         if isinstance(exc, FileFormatError):
             raise
         raise FileFormatError(path, f"is no valid speaker model: {exc}") from None
+
+
+@contextlib.contextmanager
+def refusals_named(stream_file, speaker_file):
+    """The model's refusal of a stream inside the block (too few of its FAPs on a frame) named by the
+    files the user gave, ``STREAM with --speaker MODEL: ...``, not by the stream's own name inside;
+    errors that already name ``stream_file`` (a corrupt file) pass as they are."""
+    try:
+        yield
+    except InputError as error:
+        if speaker_file is None or str(error).startswith(str(stream_file)):
+            raise
+        raise InputError(f"{stream_file} with --speaker {speaker_file}: {error}") from None
