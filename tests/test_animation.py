@@ -159,8 +159,9 @@ def test_a_workers_error_reaches_the_job_as_the_kind_the_command_reports_in_one_
         assert "Traceback: here" in carried.__notes__[0]
 
 
-@pytest.mark.parametrize("workers", [0, 2.5, True])
+@pytest.mark.parametrize("workers", [0, 2.5, True, "2"])
 def test_a_bad_number_of_workers_is_refused(tmp_path, workers):
+    """0, a fraction, a bool or a word: refused before any frame is made."""
     from faceanim.geometry.animation import spilled
 
     mesh = wave_mesh()

@@ -316,14 +316,14 @@ def _beside(main, other, progress):
 
 
 def _workers(workers) -> int:
-    """The processes a job deforms its frames with: ``workers`` if given, else the default."""
-    from .geometry.animation import default_workers
+    """The processes a job deforms its frames with (:func:`~faceanim.geometry.animation.worker_count`),
+    a bad number refused as the job's input, before any work."""
+    from .geometry.animation import worker_count
 
-    if workers is None:
-        return default_workers()
-    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
-        raise InputError(f"workers must be a whole number of at least 1, got {workers!r}")
-    return int(workers)
+    try:
+        return worker_count(workers)
+    except ValueError as error:
+        raise InputError(str(error)) from None
 
 
 def _ready_target(target, mesh_path, points, fdp, parts, progress):
@@ -350,7 +350,7 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     where its file and its geometry do not tell them apart; ``speaker``, a speaker model file
     (``faceanim speaker build``), interprets the stream first
     (:meth:`~faceanim.speaker.SpeakerModel.regularise`); ``workers``, the processes deforming the frames
-    (default :func:`~faceanim.geometry.animation.default_workers`). Returns the streamed
+    (default :func:`~faceanim.geometry.animation.worker_count`). Returns the streamed
     :class:`~faceanim.geometry.animation.Animation`: reading its frames deforms them again."""
     from .mpeg4.fapfile import read_fap
     from .progress import as_progress
@@ -365,13 +365,11 @@ def decode(fap_path, output, *, target_mesh=None, points=None, fdp=None, preview
     shown = as_progress(progress)
     stream = read_fap(fap_path)
     if speaker is not None:
-        from .speaker import read_speaker
+        from .speaker import read_speaker, refusals_named
 
         model = read_speaker(speaker)
-        try:
+        with refusals_named(fap_path, speaker):
             stream = model.regularise(stream)
-        except InputError as error:  # named by the files given, not by the stream's own name inside
-            raise InputError(f"{fap_path} with --speaker {speaker}: {error}") from None
     target, pieces, unit = _ready_target(target, target_mesh, points, fdp, parts, shown)
     shown.status(f"playing {len(stream)} frames of FAPs on the target ({len(target.mesh.vertices):,} vertices)")
     animation = animate_faps(stream, target, head_motion=head_motion, parts=pieces)
@@ -417,7 +415,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
     ``progress``, a :class:`~faceanim.progress.Progress`, shows the long steps (quiet when None).
     ``capture``, the :class:`~faceanim.capture.stream.Capture` of ``video`` already made, stands in
     for tracking it again. ``workers``: the processes deforming the frames (default
-    :func:`~faceanim.geometry.animation.default_workers`). Returns ``(animation, stream)``: the streamed
+    :func:`~faceanim.geometry.animation.worker_count`). Returns ``(animation, stream)``: the streamed
     :class:`~faceanim.geometry.animation.Animation` (reading its frames deforms them again) and the FAPs.
 
     A ``target_mesh`` ``.glb`` whose morph targets carry ARKit or FACS AU names is a named rig: its own

@@ -25,7 +25,7 @@ from ..framestore import FrameStore
 from ..validation import as_array
 from .mesh import Mesh
 
-__all__ = ["Animation", "FrameSource", "default_workers", "spilled"]
+__all__ = ["Animation", "FrameSource", "spilled", "worker_count"]
 
 FrameSource = Callable[[int, int], np.ndarray]
 """``frames(start, stop)`` -> positions ``(stop - start, V, 3)`` float64 of frames ``start .. stop - 1``."""
@@ -126,7 +126,7 @@ class Animation:
 
 
 @contextlib.contextmanager
-def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "deforming", workers: int = 1):
+def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "deforming", workers=1):
     """Yield ``animation`` with its frames made once and kept in a temporary file, read back in chunks.
 
     The file holds each frame's displacement from the rest as float32 (what a glTF file keeps, to
@@ -135,9 +135,10 @@ def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "de
     output's folder: the disk the results go to), else the system's temporary folder (``TMPDIR``;
     where that is a tmpfs, the frames cost memory after all). A held animation is yielded as it is.
     ``progress`` (a :class:`~faceanim.progress.Progress`) shows the frames being made, as ``desc``.
-    ``workers``: processes making the frames, each a run of :data:`PARALLEL_RUN` frames at a time (see
-    :func:`_made_in_parallel`); the frames are the same whatever their number, to float32's rounding
-    (a deformer's float64 sums over runs of other lengths can round differently in the last place).
+    ``workers``: processes making the frames (None: :func:`worker_count`'s default), each a run of
+    :data:`PARALLEL_RUN` frames at a time (see :func:`_made_in_parallel`); the frames are the same
+    whatever their number, to float32's rounding (a deformer's float64 sums over runs of other
+    lengths can round differently in the last place).
 
     >>> mesh = Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
     >>> made = []
@@ -151,8 +152,7 @@ def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "de
     """
     from ..progress import as_progress
 
-    if isinstance(workers, bool) or int(workers) != workers or workers < 1:
-        raise ValueError(f"workers must be a whole number of at least 1, got {workers!r}")
+    workers = worker_count(workers)
     if not animation.is_streamed:
         yield animation
         return
@@ -170,11 +170,16 @@ def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "de
                                  animation.fps)
 
 
-def default_workers() -> int:
-    """The processes the jobs give :func:`spilled`: the CPUs this process may run on, at most
+def worker_count(workers=None) -> int:
+    """The processes :func:`spilled` makes frames in: ``workers``, a whole number of at least 1
+    (``ValueError`` otherwise); by default the CPUs this process may run on, at most
     :data:`MOST_WORKERS`."""
-    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return max(1, min(MOST_WORKERS, usable))
+    if workers is None:
+        usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        return max(1, min(MOST_WORKERS, usable))
+    if isinstance(workers, bool) or not isinstance(workers, (int, float)) or int(workers) != workers or workers < 1:
+        raise ValueError(f"workers must be a whole number of at least 1, got {workers!r}")
+    return int(workers)
 
 
 def _made_in_parallel(animation: Animation, store: FrameStore, workers: int) -> Iterator[None]:
