@@ -34,6 +34,7 @@ _FRONT = 3.0  # lip reaches (0.12 of the mouth's width): how far behind the lips
 _LOOK = 3.0  # lip reaches: how far in front of or behind the skin the teeth are looked for
 _COVER_CLEAR = 0.5  # lip reaches: skin at least this clear of the teeth at rest is kept in front of them
 _PLANES = 4  # nearest tooth vertices whose tangent planes screen a lip vertex before the exact distance
+_EASED_ROUNDS = 16  # eased pushes (TeethContact.eased) per frame, at most: each leaves a pushed vertex a little short
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,6 +87,8 @@ class TeethContact:
         self.parts = parts
         self.lips = np.zeros(0, dtype=np.int64)
         self.sets: list[_RigidSet] = []
+        self.skin_rest = target.mesh.vertices[np.asarray(skin_ids, dtype=np.int64)]
+        self._skin_tree = None
         if not any(n in target.points for n in INNER_LIP_POINTS) or not {"8.3", "8.4"} <= target.points.keys():
             return
         rest = target.mesh.vertices
@@ -149,6 +152,47 @@ class TeethContact:
             # Back to the posed frame: the push turns with the teeth.
             skin_field[:, self.lips] += turned_vectors(push, a, turn)
         return pushed
+
+    def eased(self, skin_field: np.ndarray, angles, radius: float) -> np.ndarray:
+        """Pushes the lips in ``skin_field (T, S, 3)`` out of the teeth like a call does, but carries each
+        push onto the skin within ``radius`` (at rest) of the pushed vertex (0: each push alone), in
+        place; returns which skin vertices moved (``(T, S) bool``).
+
+        A push moves one vertex by up to a millimetre, and the lips' triangles at the mouth's corners
+        are slivers a quarter of that high: pushed alone, a corner turns them over. Carried, the
+        neighbours move nearly as the pushed vertex does. The shares fall off with distance (Wendland's
+        ``(1 - r)^4 (4 r + 1)``) and are averaged where pushes overlap (a pushed vertex's own share among
+        them: given each its own push exactly, two neighbours pushed by different amounts turn the sliver
+        between them over), so a pushed vertex can end short of its push; pushes are repeated until no
+        lip vertex is in, at most :data:`_EASED_ROUNDS` times."""
+        moved = np.zeros(skin_field.shape[:2], dtype=bool)
+        for _ in range(_EASED_ROUNDS):
+            before = skin_field.copy()
+            pushed = self(skin_field, angles)
+            if not pushed.any():
+                break
+            for t in np.flatnonzero(pushed.any(axis=1)):
+                ids = np.flatnonzero(pushed[t])
+                push = skin_field[t, ids] - before[t, ids]
+                near, share = (ids, np.eye(len(ids))) if radius <= 0 else self._shares(ids, radius)
+                skin_field[t] = before[t]
+                skin_field[t, near] += share @ push
+                moved[t, near] = True
+        return moved
+
+    def _shares(self, pushed: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """The skin within ``radius`` of the ``pushed`` skin vertices (at rest), and ``(N, P)`` each one's
+        share of each push: Wendland weights, divided by their sum where it passes 1."""
+        if self._skin_tree is None:
+            self._skin_tree = cKDTree(self.skin_rest)
+        found = self._skin_tree.query_ball_point(self.skin_rest[pushed], radius)
+        column = np.repeat(np.arange(len(pushed)), [len(f) for f in found])
+        row = np.concatenate(found).astype(np.int64)
+        r = np.linalg.norm(self.skin_rest[row] - self.skin_rest[pushed[column]], axis=1) / radius
+        near, local = np.unique(row, return_inverse=True)
+        share = np.zeros((len(near), len(pushed)))
+        np.add.at(share, (local, column), (1 - r) ** 4 * (4 * r + 1))
+        return near, share / np.maximum(share.sum(axis=1), 1.0)[:, None]
 
 
 def _lip_reach(target: Target) -> float:

@@ -293,24 +293,23 @@ class PartsDeformer:
         # a fraction of a millimetre into a tooth, so there the pins yield.
         relaxed, _ = self.relaxer(rest + skin_field[again], jaw_only[again], pushed[again], pins_yield=True)
         settled = relaxed - rest
-        # Then the pushes that fold nothing: a last push, taken back around every fold it makes.
-        field = settled.copy()
-        self.contact(field, angles[again], among=(settled != skin_field[again]).any(axis=2))
-        for k in range(len(again)):
-            for _ in range(_TAKE_BACK_ROUNDS):
-                turned = self.relaxer.turned(rest + field[k])
-                if not turned.any():
-                    break
-                back = np.unique(self.relaxer.triangles[turned])
-                field[k, back] = settled[k, back]
-            if self.relaxer.turned(rest + field[k]).any():  # still folding after every round: no last push
-                field[k] = settled[k]
-        skin_field[again] = field
+        # Then a last push out of the teeth that folds nothing: each vertex alone, or where that folds
+        # carried onto the skin around each pushed vertex, over wider patches in turn.
+        folding = np.arange(len(again))
+        for radius in _EASED_RADII:
+            field = settled[folding].copy()
+            self.contact.eased(field, angles[again[folding]], radius * self.contact.reach)
+            clear = np.array([not self.relaxer.turned(rest + f).any() for f in field])
+            skin_field[again[folding[clear]]] = field[clear]
+            folding = folding[~clear]
+            if not len(folding):
+                return
+        skin_field[again[folding]] = settled[folding]  # folding however far the push is carried: none
 
 
 _COVER_RINGS = (2, 4, 8, 16)  # rings around skin the teeth show through that are filled, tried in turn
 _CONTACT_ROUNDS = 4  # pushes out of the teeth and relaxations around them, taken in turn
-_TAKE_BACK_ROUNDS = 8  # the last push taken back around its folds, a ring at a time, before it is dropped
+_EASED_RADII = (0.0, 0.25, 0.5, 1.0, 2.0)  # lip reaches: how far the last push is carried, tried in turn
 _FIT_CHUNK = 1024  # frames of the control points' motion read at once by the fits over all frames
 
 
