@@ -1,5 +1,6 @@
 """`Animation` held or streamed, and the morph compression reading a streamed one in bounded memory."""
 
+import os
 import tracemalloc
 
 import numpy as np
@@ -168,3 +169,23 @@ def test_a_bad_number_of_workers_is_refused(tmp_path, workers):
     with pytest.raises(ValueError, match="workers must be a whole number"):
         with spilled(Animation.streamed(mesh, wave_source(mesh), 20, 25.0), folder=tmp_path, workers=workers):
             pass
+
+
+@pytest.mark.parametrize("files, quota", [
+    ({"cpu.max": "50000 100000\n"}, 1),  # cgroup v2: half a CPU's time
+    ({"cpu.max": "max 100000\n"}, None),  # v2, unlimited
+    ({"cpu/cpu.cfs_quota_us": "50000\n", "cpu/cpu.cfs_period_us": "100000\n"}, 1),  # v1
+    ({"cpu/cpu.cfs_quota_us": "-1\n", "cpu/cpu.cfs_period_us": "100000\n"}, None),  # v1, unlimited
+    ({"cpu.max": "garbled\n"}, None),
+    ({}, None),
+])
+def test_the_default_number_of_workers_keeps_within_a_containers_cpu_quota(tmp_path, files, quota):
+    """A container given half a CPU on a many-core host forks no second worker; no quota, or one that
+    cannot be read, leaves the CPUs the process may run on."""
+    from faceanim.geometry.animation import usable_cpus
+
+    for name, text in files.items():
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text(text)
+    affinity = len(os.sched_getaffinity(0))
+    assert usable_cpus(str(tmp_path)) == (affinity if quota is None else min(affinity, quota))
