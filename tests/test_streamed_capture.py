@@ -47,6 +47,26 @@ def test_a_frame_store_leaves_no_file_behind(tmp_path):
     assert os.listdir(tmp_path) == []  # the stores have no name in the folder
 
 
+def test_a_reserved_frame_store_takes_rows_out_of_order_and_reads_unwritten_ones_as_zeros():
+    """What the parallel deformation relies on: reserve the length, write runs in any order (as
+    workers finish them), and read back exactly what was written; a reserve never shrinks the store."""
+    rng = np.random.default_rng(3)
+    rows = rng.normal(size=(10, 2, 3)).astype(np.float32)
+    with FrameStore((2, 3)) as store:
+        store.append(rows[:2])
+        store.reserve(10)
+        assert len(store) == 10 and store.shape == (10, 2, 3)
+        np.testing.assert_array_equal(store[2:10], np.zeros((8, 2, 3)))
+        for start in (8, 4, 2, 6):  # out of order
+            store[start:start + 2] = rows[start:start + 2]
+        np.testing.assert_array_equal(store[0:10], rows)
+        with pytest.raises(ValueError, match="at least the 10 rows"):
+            store.reserve(4)
+        with pytest.raises(ValueError, match="whole number"):
+            store.reserve(10.5)
+        assert len(store) == 10
+
+
 def test_the_filter_run_in_blocks_equals_the_filter_run_at_once():
     rng = np.random.default_rng(1)
     t = np.cumsum(rng.uniform(0.02, 0.05, 200))
