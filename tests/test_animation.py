@@ -173,7 +173,10 @@ def test_a_bad_number_of_workers_is_refused(tmp_path, workers):
 
 @pytest.mark.parametrize("files, quota", [
     ({"cpu.max": "50000 100000\n"}, 1),  # cgroup v2: half a CPU's time
+    ({"cpu.max": "150000 100000\n"}, 2),  # one and a half: a second worker has time to run
     ({"cpu.max": "max 100000\n"}, None),  # v2, unlimited
+    ({"cpu.max": "max\n", "cpu/cpu.cfs_quota_us": "50000\n", "cpu/cpu.cfs_period_us": "100000\n"}, None),
+    ({"cpu.max": "50000\n"}, None),  # no period: unreadable
     ({"cpu/cpu.cfs_quota_us": "50000\n", "cpu/cpu.cfs_period_us": "100000\n"}, 1),  # v1
     ({"cpu/cpu.cfs_quota_us": "-1\n", "cpu/cpu.cfs_period_us": "100000\n"}, None),  # v1, unlimited
     ({"cpu.max": "garbled\n"}, None),
