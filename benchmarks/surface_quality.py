@@ -130,7 +130,7 @@ def measured(target) -> Measured:
 
 def scores(m: Measured, positions: np.ndarray) -> dict:
     """The table's numbers for one animation ``positions (T, V, 3)`` of ``m.target``."""
-    from faceanim.geometry.quality import edge_stretch, penetration_depth, rigid_residual, turned_over
+    from faceanim.geometry.quality import bend_change, edge_stretch, penetration_depth, rigid_residual, turned_over
 
     rest = m.target.mesh.vertices
     turned = turned_over(rest, positions, m.target.mesh.triangles, mask=m.skin_triangles)
@@ -144,6 +144,8 @@ def scores(m: Measured, positions: np.ndarray) -> dict:
            "open_frame": open_frame,
            "chin_drop": float(drop[open_frame]) * m.cm,
            "stretch": float(edge_stretch(rest, positions, m.skin_edges).max())}
+    skin = m.target.mesh.triangles[m.skin_triangles]
+    out["bend"] = bend_change(rest, positions[open_frame][None], skin, percentile=[95, 99])[0].tolist()
     for name, ids in (("upper", m.upper_teeth), ("lower", m.lower_teeth)):
         out[name] = float(rigid_residual(rest[ids], positions[:, ids]).max()) * m.cm if len(ids) >= 3 else None
     out["ratio"] = None
@@ -275,14 +277,15 @@ def main(argv=None) -> int:
              "| video | target | route | frames | skin triangles turned (goal 0) | frames with any | "
              "most folded frame | upper teeth non-rigid (cm, goal ≤ 0.02) | lower teeth non-rigid (cm, goal ≤ 0.02) | "
              "incisors / chin at most open (goal 0.5-1.2) | lips into teeth (cm) | worst skin edge stretch | "
-             "chin drop (cm) | most open frame | animate (s) |",
-             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "skin bent at most open, p95 / p99 (°) | chin drop (cm) | most open frame | animate (s) |",
+             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         lines.append(f"| {r['video']} | {TARGET_LABELS[r['target']]} | {r['via']} | {r['frames']} | {r['turned']} | "
                      f"{r['turned_frames']} | {_cell(r['fold_frame'], 'd')} | {_cell(r['upper'], '.4f')} | "
                      f"{_cell(r['lower'], '.4f')} | "
                      f"{_cell(r['ratio'], '.2f')} | {_cell(r['depth'], '.3f')} | {r['stretch']:.2f} | "
-                     f"{r['chin_drop']:.2f} | {r['open_frame']} | {r['seconds']:.0f} |")
+                     f"{r['bend'][0]:.1f} / {r['bend'][1]:.1f} | {r['chin_drop']:.2f} | {r['open_frame']} | "
+                     f"{r['seconds']:.0f} |")
     for name, m in targets.items():
         notes.append(f"{TARGET_LABELS[name]}: {len(m.target.mesh.vertices):,} vertices, "
                      f"{int(m.skin_triangles.sum()):,} skin triangles, {len(m.skin_edges):,} skin edges; "
@@ -305,6 +308,9 @@ def main(argv=None) -> int:
               "312, 317 or MPEG-4 2.2-2.9) that lie outside the teeth and in front of them at rest.",
               "- *worst skin edge stretch*: the largest max(l / l0, l0 / l) over skin edges and frames "
               "(`edge_stretch`).",
+              "- *skin bent*: at the most open frame, the 95th and 99th percentiles over skin edges of how far the "
+              "angle between the edge's two triangles changed from rest (`bend_change`): creases the deformation "
+              "adds (the jaw's turn, the fold fill) are edges bent far more than the rest.",
               "- *chin drop*: how far 2.1 moved down (the face's -y) at its most open frame.", "",
               "n/a: the target has no such part (the avatar has no upper teeth; the generic face no teeth).", "",
               *[f"- {n}" for n in notes], "",

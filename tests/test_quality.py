@@ -5,6 +5,7 @@ import pytest
 from conftest import grid_mesh
 
 from faceanim.geometry.quality import (
+    bend_change,
     edge_stretch,
     penetration_depth,
     rigid_residual,
@@ -134,6 +135,34 @@ def plane(size=4.0):
     """A square in z = 0 facing +z, centred on the origin."""
     h = size / 2
     return np.array([[-h, -h, 0], [h, -h, 0], [h, h, 0], [-h, h, 0]]), np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def test_bend_change_is_zero_for_a_rigid_turn_and_counts_a_ridge_turned_into_a_valley_twice():
+    """A curved sheet (a cylinder's quarter) turned and moved as a whole: no edge bends. Flattened, each
+    edge across the curve loses its own bend. One crease pushed in (a row of vertices lifted) is a few
+    edges bent far more than the rest: the highest percentile sees it, the median does not. A ridge
+    turned into a valley changes by twice its angle, not zero."""
+    from scipy.spatial.transform import Rotation
+
+    mesh = grid_mesh(n=11, size=1.0)
+    angle = mesh.vertices[:, 0] * (np.pi / 2)
+    curved = np.stack([np.sin(angle), mesh.vertices[:, 1], 1 - np.cos(angle)], axis=1)
+    tris = mesh.triangles
+    turned = curved @ Rotation.from_euler("xyz", [20, -35, 50], degrees=True).as_matrix().T + [3.0, -1.0, 2.0]
+    np.testing.assert_allclose(bend_change(curved, turned[None], tris, percentile=100), 0.0, atol=1e-9)
+    flat = mesh.vertices
+    across = bend_change(curved, flat[None], tris, percentile=[50, 100])[0]
+    assert 8.0 < across[1] < 10.0  # the curve turns 90 degrees over 10 columns
+    creased = flat.copy()
+    creased[np.isclose(flat[:, 0], 0.5), 2] = 0.1
+    median, top = bend_change(flat, creased[None], tris, percentile=[50, 100])[0]
+    assert median == 0.0 and top > 20.0
+    ridge = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.3]])
+    valley = ridge * [1, 1, -1]
+    flat_pair = ridge * [1, 1, 0]
+    pair = [[0, 1, 2], [1, 3, 2]]
+    once = bend_change(ridge, flat_pair[None], pair, percentile=100)[0]
+    np.testing.assert_allclose(bend_change(ridge, valley[None], pair, percentile=100)[0], 2 * once)
 
 
 def test_a_point_pushed_behind_a_plane_reports_its_depth():

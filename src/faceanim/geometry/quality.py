@@ -26,8 +26,8 @@ from .mesh import Mesh
 from .project import project_points
 from .topology import open_edges
 
-__all__ = ["turned_over", "turned_triangles", "rigid_residual", "edge_stretch", "signed_distance", "signed_offsets",
-           "penetration_depth"]
+__all__ = ["turned_over", "turned_triangles", "rigid_residual", "edge_stretch", "bend_change", "signed_distance",
+           "signed_offsets", "penetration_depth"]
 
 _CHUNK_VALUES = 4_000_000  # floats per working array (32 MB): frames are processed this many values at a time
 
@@ -174,6 +174,65 @@ def edge_stretch(rest, positions, edges) -> np.ndarray:
         with np.errstate(divide="ignore"):
             ratio = np.maximum(length / rest_length, rest_length / length)
         out[frames] = ratio.max(axis=1)
+    return out
+
+
+def bend_change(rest, positions, triangles, *, percentile: float = 95.0) -> np.ndarray:
+    """How far a surface bends away from its rest shape, per frame: the ``percentile`` over the edges
+    two of ``triangles`` share of the change in the signed angle between those two triangles' normals
+    (degrees; a ridge turned into a valley counts both bends). 0 for any rigid motion, and for a
+    surface that only stretches in its own plane; a crease that a deformation adds is a line of edges
+    bent far more than the rest.
+
+    Parameters
+    ----------
+    rest : (V, 3) float64
+    positions : (T, V, 3) float64
+    triangles : (F, 3) int64
+    percentile : float or sequence of float
+        In [0, 100].
+
+    Returns
+    -------
+    (T,) float64, or (T, P) for P percentiles
+
+    Examples
+    --------
+    >>> rest = np.array([[0., 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+    >>> folded = rest.copy(); folded[3] = [0.5, 0.5, 0.7071]  # the second triangle turned up about the diagonal
+    >>> bend_change(rest, np.stack([rest, folded]), [[0, 1, 2], [1, 3, 2]], percentile=100).round(1)
+    array([ 0., 90.])
+    """
+    rest, positions = _sequence(rest, positions)
+    triangles = as_index_array(triangles, "triangles", upper=len(rest), shape=("F", 3))
+    q = np.asarray(percentile, dtype=np.float64)
+    if q.ndim > 1 or not ((q >= 0) & (q <= 100)).all():
+        raise ValueError(f"percentile must be in [0, 100], got {percentile}")
+    directed = triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    edges = np.sort(directed, axis=1)
+    owner = np.repeat(np.arange(len(triangles)), 3)
+    order = np.lexsort((edges[:, 1], edges[:, 0]))
+    edges, owner, directed = edges[order], owner[order], directed[order]
+    pair = np.flatnonzero((edges[1:] == edges[:-1]).all(axis=1))  # an edge two triangles share
+    first, second = owner[pair], owner[pair + 1]
+    start, end = directed[pair, 0], directed[pair, 1]  # the edge as the first triangle runs along it
+    out = np.zeros((len(positions), *q.shape))
+    if not len(pair):
+        return out
+
+    def angles(p):  # (..., E) degrees between the two triangles' normals, signed by the way the edge bends
+        corner = p[..., triangles, :]
+        n = np.cross(corner[..., 1, :] - corner[..., 0, :], corner[..., 2, :] - corner[..., 0, :])
+        n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-300)
+        along = p[..., end, :] - p[..., start, :]
+        along /= np.maximum(np.linalg.norm(along, axis=-1, keepdims=True), 1e-300)
+        n1, n2 = n[..., first, :], n[..., second, :]
+        return np.degrees(np.arctan2((np.cross(n1, n2) * along).sum(axis=-1), (n1 * n2).sum(axis=-1)))
+
+    at_rest = angles(rest)
+    for frames in _chunks(len(positions), 9 * len(triangles)):
+        change = np.abs((angles(positions[frames]) - at_rest + 180.0) % 360.0 - 180.0)
+        out[frames] = np.moveaxis(np.percentile(change, q, axis=1), 0, -1)
     return out
 
 
