@@ -45,10 +45,68 @@ def test_ict_parts_follow_its_own_part_table(ict):
 def test_ict_jaw_weight_is_full_on_the_chin_and_nothing_above_the_lips(ict):
     target, parts = ict
     w = parts.jaw_weight
-    assert w[target.points["2.1"]] > 0.9 and w[target.points["2.3"]] > 0.9  # chin, lower lip middle
+    assert w[target.points["2.10"]] > 0.9 and w[target.points["2.3"]] > 0.9  # chin boss, lower lip middle
+    # The chin's lowest point sits on the jaw line, where the weight, eased, starts to fall towards the neck.
+    assert w[target.points["2.1"]] > 0.8
     for still in ("2.2", "9.15", "3.7", "4.1", "10.9", "10.10"):  # upper lip, nose, eye, brow, ears
         if still in target.points:
             assert w[target.points[still]] < 0.05, still
+
+
+def test_an_eased_weight_keeps_the_held_vertices_and_rounds_the_kinks_of_a_harmonic_one():
+    """A strip whose weight is 1 on its left third, 0 on its right third and harmonic (a straight ramp)
+    between: the ramp meets each flat part with a kink. Eased, the held column keeps its values,
+    every weight stays in [0, 1], a constant stays constant, and the sharpest bend (the largest
+    second difference along the strip) falls to under half."""
+    from conftest import grid_mesh
+
+    from faceanim.geometry.surface import cotangent_laplacian
+    from faceanim.parts.jaw import _eased
+
+    mesh = grid_mesh(n=31, size=3.0)
+    x = mesh.vertices[:, 0]
+    ramp = np.clip(2.0 - x, 0.0, 1.0)  # 1 up to x = 1, 0 from x = 2
+    L, mass = cotangent_laplacian(mesh)
+    held = np.isclose(x, 3.0)
+    eased = _eased(ramp, L, mass, held, 0.3 ** 2)
+    np.testing.assert_array_equal(eased[held], ramp[held])
+    assert eased.min() >= -1e-12 and eased.max() <= 1 + 1e-12
+    np.testing.assert_allclose(_eased(np.full(len(x), 0.7), L, mass, held, 0.3 ** 2), 0.7)
+    row = np.isclose(mesh.vertices[:, 1], 1.5)
+    order = np.argsort(x[row])
+
+    def sharpest(w):
+        return np.abs(np.diff(w[row][order], 2)).max()
+
+    assert sharpest(eased) < 0.5 * sharpest(ramp), (sharpest(eased), sharpest(ramp))
+
+
+def test_the_ict_jaw_weight_is_eased_away_from_the_lips_and_harmonic_on_them(ict):
+    """Within LIPS_HELD mouth widths of the lips' control points the weight is the harmonic one (the
+    upper lip takes no jaw weight from the corners), and the weight bends less over the cheeks and
+    jaw than the harmonic one does."""
+    from scipy.spatial import cKDTree
+
+    from faceanim.geometry.surface import cotangent_laplacian
+    from faceanim.geometry.topology import submesh
+    from faceanim.parts import jaw as jaw_module
+    from faceanim.parts.faceparts import _LOWER_LIP, _UPPER_LIP
+
+    target, parts = ict
+    skin = parts.mask("skin")
+    eased = parts.jaw_weight[skin]
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(jaw_module, "EASED_OVER", 0.0)
+        harmonic = face_parts(target).jaw_weight[skin]
+    rest = target.mesh.vertices[skin]
+    width = np.linalg.norm(np.subtract(*target.mesh.vertices[target.ids(["8.3", "8.4"])]))
+    lips = target.mesh.vertices[target.ids([n for n in _UPPER_LIP + _LOWER_LIP if n in target.points])]
+    near = cKDTree(lips).query(rest)[0] < jaw_module.LIPS_HELD * width
+    np.testing.assert_allclose(eased[near], harmonic[near], atol=1e-9)
+    assert not np.allclose(eased[~near], harmonic[~near])
+    L, _ = cotangent_laplacian(submesh(target.mesh, skin)[0])
+    away = ~near
+    assert np.abs(L @ eased)[away].sum() < 0.7 * np.abs(L @ harmonic)[away].sum()
 
 
 def test_the_jaw_turns_the_lower_teeth_rigidly_and_controls_land_exactly(ict):
@@ -409,7 +467,8 @@ def test_an_eased_push_carries_each_push_onto_the_skin_around_it_and_leaves_no_l
     vertex at a time, neighbours along an edge end up to the whole push apart; eased, the push is
     carried onto the skin within the radius (nothing beyond it moves), no lip vertex stays in, and
     neighbours move nearly alike (the pushes' differences along edges a third of the plain push's or
-    less, nine edges in ten). With radius 0 it is the plain push."""
+    less, nine edges in ten). With radius 0 it is the plain push. A push on the lower lip alone moves
+    nothing on the upper lip, which touches it at rest."""
     from faceanim.geometry.topology import submesh
     from faceanim.retarget.contact import TeethContact
 
@@ -447,6 +506,16 @@ def test_an_eased_push_carries_each_push_onto_the_skin_around_it_and_leaves_no_l
         return step[step > 0]
 
     assert np.percentile(steps(eased), 90) < 0.3 * np.percentile(steps(plain), 90)
+
+    # The lips touch at rest: a push on the lower lip is carried along the skin, not across the mouth.
+    weight = parts.jaw_weight[skin_ids]
+    lower = np.zeros(len(rest), dtype=bool)
+    lower[contact.lips[weight[contact.lips] > 0.95]] = True
+    dented = np.where(lower[:, None], field[0], 0.0)[None]
+    before = dented.copy()
+    assert contact.eased(dented, angles, 2 * radius).any()
+    upper = weight < 0.05
+    np.testing.assert_array_equal(dented[0, upper], before[0, upper])
 
 
 def test_a_jaw_weight_that_would_fold_the_skin_is_raised_until_no_turn_up_to_the_widest_folds():

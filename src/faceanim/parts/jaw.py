@@ -1,5 +1,5 @@
-"""How much of the jaw's turn each skin vertex follows: a harmonic field along the skin, kept from
-folding the skin at the widest turn (:func:`unfolded_jaw_weight`)."""
+"""How much of the jaw's turn each skin vertex follows: a harmonic field along the skin, eased away
+from the lips (:func:`_eased`), kept from folding the skin at the widest turn (:func:`unfolded_jaw_weight`)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse.csgraph import dijkstra
 from scipy.sparse.linalg import spsolve
+from scipy.spatial import cKDTree
 
 from ..geometry.mesh import Mesh
 from ..geometry.surface import cotangent_laplacian
@@ -19,6 +20,9 @@ __all__ = ["unfolded_jaw_weight", "turned_vectors"]
 
 # How much of its rest length (along itself) a skin edge keeps, at least, under the jaw's turn alone.
 KEPT_ALONG = 0.3
+# The skin's jaw weight is eased over this many mouth widths (the diffusion's length), away from the
+# lips: within LIPS_HELD mouth widths of the lips' control points it keeps its harmonic value.
+EASED_OVER, LIPS_HELD = 0.3, 0.25
 
 
 def turned_vectors(vectors, axis, angles) -> np.ndarray:
@@ -32,7 +36,7 @@ def turned_vectors(vectors, axis, angles) -> np.ndarray:
 
 def _skin_jaw_weight(mesh: Mesh, skin: np.ndarray, frame: _Frame, target: Target) -> np.ndarray:
     """``(S,)`` the jaw's share of each skin vertex: harmonic along the skin between the chin (1) and
-    the upper lip, the ears and the neck (0)."""
+    the upper lip, the ears and the neck (0), then eased away from the lips (:func:`_eased`)."""
     ids = np.flatnonzero(skin)
     sub, index_of = submesh(mesh, skin)
     tris = sub.triangles
@@ -66,7 +70,7 @@ def _skin_jaw_weight(mesh: Mesh, skin: np.ndarray, frame: _Frame, target: Target
         return np.zeros(len(ids))
     if not len(tris):
         return np.nan_to_num(fixed)
-    L, _ = cotangent_laplacian(sub)
+    L, mass = cotangent_laplacian(sub)
     # Vertices in no skin triangle, and skin islands with no fixed vertex, hold 0.
     used = np.zeros(len(ids), dtype=bool)
     used[np.unique(tris)] = True
@@ -83,7 +87,33 @@ def _skin_jaw_weight(mesh: Mesh, skin: np.ndarray, frame: _Frame, target: Target
         A = L[free][:, free]
         b = -L[free][:, ~free] @ out[~free]
         out[free] = spsolve(A.tocsc(), b)
-    return np.clip(out, 0.0, 1.0)
+    lips = mesh.vertices[[target.points[n] for n in _UPPER_LIP + _LOWER_LIP if n in target.points]]
+    held = ~used
+    if len(lips):
+        held |= cKDTree(lips).query(mesh.vertices[ids], distance_upper_bound=LIPS_HELD * w)[0] < np.inf
+    return np.clip(_eased(out, L, mass, held, (EASED_OVER * w) ** 2), 0.0, 1.0)
+
+
+def _eased(weight, laplacian, mass, held, spread) -> np.ndarray:
+    """``weight`` diffused over the surface for a time ``spread`` (a length squared), the ``held``
+    vertices keeping their values: one implicit step, ``(M + spread L) w' = M w``.
+
+    A harmonic weight runs straight from the edge of one region it is fixed in to the next and meets
+    each with a kink; turned by the jaw, every kink is a crease in the skin (d18 onto the ICT head at
+    its widest, frame 83: creases down the cheeks from the mouth's corners and along the jaw). The
+    regions blur too: on the ICT head the chin's lowest point (2.1) falls from 1 to 0.87 and the jaw's
+    corners (2.13, 2.14) to about 0.4, which the fit to the motion (``PartsDeformer.fitted_jaw_weight``)
+    sets again at every control point. The caller holds the lips because, eased, the upper lip would
+    take jaw weight from the corners between its control points and tear as the mouth opens."""
+    free = np.flatnonzero(~held)
+    if not len(free) or spread <= 0 or not (mass > 0).any():
+        return weight
+    mass = np.maximum(mass, mass[mass > 0].min())
+    step = (sparse.diags(mass) + spread * sparse.csr_matrix(laplacian)).tocsr()
+    out = np.array(weight, dtype=np.float64)
+    still = np.flatnonzero(held)
+    out[free] = spsolve(step[free][:, free].tocsc(), mass[free] * out[free] - step[free][:, still] @ out[still])
+    return out
 
 
 def unfolded_jaw_weight(rest, triangles, weight, hinge, axis, angles, *, movable=None) -> np.ndarray:

@@ -18,11 +18,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import cKDTree
 
 from ..geometry.mesh import Mesh
 from ..geometry.quality import signed_offsets
 from ..geometry.sightlines import SightLines
+from ..geometry.surface import edge_graph
 from ..geometry.topology import submesh
 from ..parts import INNER_LIP_POINTS, FaceParts
 from ..parts.jaw import turned_vectors
@@ -87,8 +89,9 @@ class TeethContact:
         self.parts = parts
         self.lips = np.zeros(0, dtype=np.int64)
         self.sets: list[_RigidSet] = []
+        self.reach = 0.0  # nothing to push (set below when the target has lips and teeth)
         self.skin_rest = target.mesh.vertices[np.asarray(skin_ids, dtype=np.int64)]
-        self._skin_tree = None
+        self._target_mesh, self._skin_ids, self._skin_graph = target.mesh, np.asarray(skin_ids, dtype=np.int64), None
         if not any(n in target.points for n in INNER_LIP_POINTS) or not {"8.3", "8.4"} <= target.points.keys():
             return
         rest = target.mesh.vertices
@@ -155,16 +158,20 @@ class TeethContact:
 
     def eased(self, skin_field: np.ndarray, angles, radius: float) -> np.ndarray:
         """Pushes the lips in ``skin_field (T, S, 3)`` out of the teeth like a call does, but carries each
-        push onto the skin within ``radius`` (at rest) of the pushed vertex (0: each push alone), in
-        place; returns which skin vertices moved (``(T, S) bool``).
+        push onto the skin within ``radius`` of the pushed vertex along the skin (0: each push alone), in
+        place; returns which skin vertices it may have moved (``(T, S) bool``: those within reach of a push).
 
         A push moves one vertex by up to a millimetre, and the lips' triangles at the mouth's corners
         are slivers a quarter of that high: pushed alone, a corner turns them over. Carried, the
-        neighbours move nearly as the pushed vertex does. The shares fall off with distance (Wendland's
-        ``(1 - r)^4 (4 r + 1)``) and are averaged where pushes overlap (a pushed vertex's own share among
-        them: given each its own push exactly, two neighbours pushed by different amounts turn the sliver
-        between them over), so a pushed vertex can end short of its push; pushes are repeated until no
-        lip vertex is in, at most :data:`_EASED_ROUNDS` times."""
+        neighbours move nearly as the pushed vertex does. The distance is taken along the skin's edges,
+        so a push on one lip does not reach across the mouth to the other, which touches it at rest.
+        The shares fall off with distance (Wendland's ``(1 - r)^4 (4 r + 1)``) and are averaged where
+        pushes overlap (a pushed vertex's own share among them: given each its own push exactly, two
+        neighbours pushed by different amounts turn the sliver between them over), so a pushed vertex
+        can end short of its push; pushes are repeated until no lip vertex is in, at most
+        :data:`_EASED_ROUNDS` times."""
+        if not np.isfinite(radius) or radius < 0:
+            raise ValueError(f"radius must be a finite distance of at least 0, got {radius}")
         moved = np.zeros(skin_field.shape[:2], dtype=bool)
         for _ in range(_EASED_ROUNDS):
             before = skin_field.copy()
@@ -174,24 +181,25 @@ class TeethContact:
             for t in np.flatnonzero(pushed.any(axis=1)):
                 ids = np.flatnonzero(pushed[t])
                 push = skin_field[t, ids] - before[t, ids]
-                near, share = (ids, np.eye(len(ids))) if radius <= 0 else self._shares(ids, radius)
+                near, share = (ids, np.eye(len(ids))) if radius == 0 else self._shares(ids, radius)
                 skin_field[t] = before[t]
                 skin_field[t, near] += share @ push
                 moved[t, near] = True
         return moved
 
     def _shares(self, pushed: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-        """The skin within ``radius`` of the ``pushed`` skin vertices (at rest), and ``(N, P)`` each one's
-        share of each push: Wendland weights, divided by their sum where it passes 1."""
-        if self._skin_tree is None:
-            self._skin_tree = cKDTree(self.skin_rest)
-        found = self._skin_tree.query_ball_point(self.skin_rest[pushed], radius)
-        column = np.repeat(np.arange(len(pushed)), [len(f) for f in found])
-        row = np.concatenate(found).astype(np.int64)
-        r = np.linalg.norm(self.skin_rest[row] - self.skin_rest[pushed[column]], axis=1) / radius
-        near, local = np.unique(row, return_inverse=True)
-        share = np.zeros((len(near), len(pushed)))
-        np.add.at(share, (local, column), (1 - r) ** 4 * (4 * r + 1))
+        """The skin within ``radius`` of the ``pushed`` skin vertices along the skin's edges, and ``(N, P)``
+        each one's share of each push: Wendland weights, divided by their sum where it passes 1."""
+        if self._skin_graph is None:
+            skin = np.zeros(len(self._target_mesh.vertices), dtype=bool)
+            skin[self._skin_ids] = True
+            mesh, index = submesh(self._target_mesh, skin)
+            order = index[self._skin_ids]  # the skin in the order the fields give it
+            self._skin_graph = edge_graph(mesh)[order][:, order]
+        distance = dijkstra(self._skin_graph, indices=pushed, limit=radius)  # (P, S), inf beyond
+        near = np.flatnonzero(np.isfinite(distance).any(axis=0))
+        r = np.minimum(distance[:, near].T / radius, 1.0)  # (N, P)
+        share = (1 - r) ** 4 * (4 * r + 1)
         return near, share / np.maximum(share.sum(axis=1), 1.0)[:, None]
 
 

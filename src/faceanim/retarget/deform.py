@@ -295,16 +295,19 @@ class PartsDeformer:
         settled = relaxed - rest
         # Then a last push out of the teeth that folds nothing: each vertex alone, or where that folds
         # carried onto the skin around each pushed vertex, over wider patches in turn.
+        # A push is kept if it turns no triangle the relaxation left unturned.
+        was_turned = [self.relaxer.turned(rest + f) for f in settled]
         folding = np.arange(len(again))
         for radius in _EASED_RADII:
             field = settled[folding].copy()
             self.contact.eased(field, angles[again[folding]], radius * self.contact.reach)
-            clear = np.array([not self.relaxer.turned(rest + f).any() for f in field])
+            clear = np.array([not (self.relaxer.turned(rest + f) & ~was_turned[k]).any()
+                              for f, k in zip(field, folding, strict=True)])
             skin_field[again[folding[clear]]] = field[clear]
             folding = folding[~clear]
             if not len(folding):
                 return
-        skin_field[again[folding]] = settled[folding]  # folding however far the push is carried: none
+        skin_field[again[folding]] = settled[folding]  # every push folds something: no last push
 
 
 _COVER_RINGS = (2, 4, 8, 16)  # rings around skin the teeth show through that are filled, tried in turn
