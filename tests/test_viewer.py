@@ -409,7 +409,10 @@ def test_page_plays_the_face_beside_its_video_without_errors(tmp_path_factory):
         report = browser_check(server.url, out)
     assert report["console_errors"] == [] and report["page_errors"] == []
     assert report["time_b"] > report["time_a"]  # the clock runs
-    assert face_difference(out / "playing_a.png", out / "playing_b.png") > 0.1  # and the face moves (a still face: 0)
+    # And the face moves: a still face differs by exactly 0. The joy clip comes back near its 0.25 s pose
+    # at 1.5-1.7 s (0.09 cm rms apart, 0.29 at 1.4 s), so by when the screenshots fall the difference
+    # ran from 0.09 (one CI run, which a threshold of 0.1 failed) to 0.76.
+    assert face_difference(out / "playing_a.png", out / "playing_b.png") > 0.02
     assert report["has_video"] and report["has_curves"] and not report["editor"]
     video = report["video"]
     assert not video["error"] and video["ready"] >= 2 and abs(video["time"] - video["face_time"]) < 0.05
