@@ -488,6 +488,9 @@ def test_an_eased_push_carries_each_push_onto_the_skin_around_it_and_leaves_no_l
     alone = field.copy()
     contact.eased(alone, angles, 0.0)
     np.testing.assert_array_equal(alone, plain)
+    for bad in (-1.0, np.nan, np.inf):
+        with pytest.raises(ValueError, match="radius must be a finite distance of at least 0"):
+            contact.eased(field.copy(), angles, bad)
 
     eased = field.copy()
     radius = contact.reach

@@ -213,6 +213,10 @@ def test_wrong_shapes_and_indices_are_named():
         rigid_residual(rest, rest)
     with pytest.raises(ValueError, match=r"edges must have shape \(E, 2\), got \(1, 3\)"):
         edge_stretch(rest, rest[None], [[0, 1, 2]])
+    with pytest.raises(ValueError, match=r"percentile must be in \[0, 100\], got 101"):
+        bend_change(rest, rest[None], [[0, 1, 2]], percentile=101)
+    with pytest.raises(ValueError, match=r"triangles must lie in \[0, 3\), got 3"):
+        bend_change(rest, rest[None], [[0, 1, 3]])
     vertices, tris = plane()
     with pytest.raises(ValueError, match=r"surface must have shape \(2, W, 3\), got \(1, 4, 3\)"):
         penetration_depth(np.zeros((2, 1, 3)), vertices[None], tris)
