@@ -185,7 +185,7 @@ def test_a_bad_number_of_workers_is_refused(tmp_path, workers):
 def test_the_default_number_of_workers_keeps_within_a_containers_cpu_quota(tmp_path, files, quota):
     """A container given half a CPU on a many-core host forks no second worker; no quota, or one that
     cannot be read, leaves the CPUs the process may run on."""
-    from faceanim.geometry.animation import usable_cpus
+    from faceanim.cpus import usable_cpus
 
     for name, text in files.items():
         (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)

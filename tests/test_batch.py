@@ -4,6 +4,7 @@ local Ray instance with a corrupt file."""
 import csv
 import json
 import re
+import sys
 
 import numpy as np
 import pytest
@@ -207,3 +208,18 @@ def test_an_interrupted_batch_leaves_no_temporary_file(tmp_path):
     assert batch.returncode == 128 + signal.SIGINT, err
     assert err.strip().splitlines()[-1] == "faceanim: interrupted"
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]  # no output, no temporary, the user's file kept
+
+
+def test_a_local_ray_gets_the_cpus_this_process_may_use_by_default(monkeypatch):
+    """Ray is started with as many CPUs as the container's quota allows (faceanim.cpus), not the
+    host's core count, unless --workers says otherwise."""
+    import types
+
+    from faceanim import dataset
+
+    started = []
+    fake = types.SimpleNamespace(init=lambda **kwargs: started.append(kwargs["num_cpus"]))
+    monkeypatch.setitem(sys.modules, "ray", fake)
+    monkeypatch.setattr(dataset, "usable_cpus", lambda: 3)
+    assert dataset._start_ray(None, None) is fake and dataset._start_ray(5, None) is fake
+    assert started == [3, 5]

@@ -21,6 +21,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .cpus import usable_cpus
 from .errors import InputError
 from .manifest import STEPS, Video, collect_videos, outputs_of
 from .progress import Quiet
@@ -256,7 +257,7 @@ def _start_ray(workers: int | None, address: str | None):
         except (ConnectionError, RuntimeError, ValueError) as exc:
             raise InputError(f"--address {address}: {_one_line(exc)}") from None
     else:
-        ray.init(num_cpus=workers or os.cpu_count(), include_dashboard=False, log_to_driver=False,
+        ray.init(num_cpus=workers or usable_cpus(), include_dashboard=False, log_to_driver=False,
                  logging_level="error")
     return ray
 
@@ -293,9 +294,10 @@ def run_batch(inputs, output, *, do=("encode",), target_mesh=None, workers: int 
     comma-separated string) for every video named by ``inputs`` (files, folders, globs, manifests: see
     :func:`~faceanim.manifest.collect_videos`), one Ray task per video, outputs into the folder
     ``output`` (made if missing). ``target_mesh``: the face ``animate`` moves (default: the avatar),
-    loaded once; ``workers``: tasks at once on this machine (default: its cores); ``address``: a Ray
-    cluster (``ray://HOST:PORT``, ``HOST:PORT`` or ``auto``) instead; ``force``: redo outputs already
-    there. Returns the :class:`BatchResult`; writes ``batch_summary.csv`` beside the outputs.
+    loaded once; ``workers``: tasks at once on this machine (default: the CPUs this process may use,
+    :func:`~faceanim.cpus.usable_cpus`); ``address``: a Ray cluster (``ray://HOST:PORT``, ``HOST:PORT``
+    or ``auto``) instead; ``force``: redo outputs already there. Returns the :class:`BatchResult`;
+    writes ``batch_summary.csv`` beside the outputs.
 
     Raises
     ------
