@@ -41,7 +41,8 @@ def test_decode_with_a_points_file_and_bad_inputs(tmp_path, capsys):
     for args, message in (
             (["--points", str(tmp_path / "far.json"), "-o", str(tmp_path / "b.glb")], "names vertex 1000000"),
             (["-o", str(tmp_path / "b.obj")], "b.obj: this output is written as .glb"),
-            (["-o", str(tmp_path / "nowhere" / "b.glb")], "does not exist")):
+            (["-o", str(tmp_path / "nowhere" / "b.glb")], "does not exist"),
+            (["--workers", "0", "-o", str(tmp_path / "b.glb")], "--workers must be a whole number from 1, got 0")):
         assert main(["decode", str(joy), "--target", str(mesh), *args]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and message in err[0], err
@@ -181,3 +182,34 @@ def test_animate_without_a_preview_times_its_curves_by_the_video_and_spills_besi
     assert len(rows) == 1 + len(track)
     times = [float(r[1]) for r in rows[1:]]
     assert times == pytest.approx(track.times.tolist(), abs=1e-4)
+
+
+def test_workers_on_the_command_line_set_the_processes_that_deform_the_frames(tmp_path, monkeypatch):
+    """--workers reaches the deforming step as given; without it, the machine's default
+    (:func:`~faceanim.geometry.animation.worker_count`, which the help's "at most 4" names)."""
+    from faceanim import pipeline
+    from faceanim.geometry.animation import MOST_WORKERS, spilled, worker_count
+
+    asked = []
+
+    def recorded(animation, **kwargs):
+        asked.append(kwargs["workers"])
+        return spilled(animation, **kwargs)
+
+    monkeypatch.setattr(pipeline, "spilled", recorded)
+    joy = shared("xface", "Faps", "joy.fap")
+    for extra in (["--workers", "3"], []):
+        assert main(["decode", str(joy), "-o", str(tmp_path / f"joy{len(extra)}.glb"), *extra]) == 0
+    assert asked == [3, worker_count()]
+    help_text = pipeline_help("decode")
+    assert f"at most {MOST_WORKERS})" in " ".join(help_text.split())
+
+
+def pipeline_help(command: str) -> str:
+    import contextlib
+    import io
+
+    shown = io.StringIO()
+    with contextlib.redirect_stdout(shown), pytest.raises(SystemExit):
+        main([command, "--help"])
+    return shown.getvalue()

@@ -109,6 +109,9 @@ def _parser() -> argparse.ArgumentParser:
         p.add_argument("--head-motion", action="store_true", help="turn the head as the FAPs (48-50) say")
         p.add_argument("--obj-sequence", metavar="DIR", help="also write the animation as numbered OBJ files")
         p.add_argument("--csv", metavar="FAPS.csv", help="also write the FAP curves as CSV")
+        p.add_argument("--workers", type=int, metavar="N",
+                       help="processes deforming the frames at once (default: the CPUs this process may use, "
+                            "at most 4)")
         if name == "decode":
             p.add_argument("--speaker", metavar="SPEAKER.npz",
                            help="interpret the FAPs through this speaker model first (faceanim speaker build): "
@@ -305,7 +308,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="comma-separated: encode, aus, blendshapes, animate, plot (the FAPs drawn; with encode) "
                         "(default: encode)")
     p.add_argument("--target", metavar="MESH", help="the face animate moves (default: the avatar), loaded once")
-    p.add_argument("--workers", type=int, metavar="N", help="videos at once on this machine (default: its cores)")
+    p.add_argument("--workers", type=int, metavar="N",
+                   help="videos at once on this machine (default: the CPUs this process may use)")
     p.add_argument("--address", metavar="ray://HOST:PORT|auto", help="run on this Ray cluster instead")
     p.add_argument("--force", action="store_true", help="make outputs again even where they are already there")
 
@@ -472,14 +476,15 @@ def _run(args, progress) -> str:
         animation = pipeline.decode(args.source, args.output, target_mesh=args.target, points=args.points,
                                     fdp=args.fdp, preview=args.preview, head_motion=args.head_motion,
                                     obj_sequence=args.obj_sequence, csv=args.csv, progress=progress,
-                                    parts=args.parts, speaker=args.speaker)
+                                    parts=args.parts, speaker=args.speaker, workers=args.workers)
         return f"wrote {args.output}: {len(animation)} frames" + (f", preview {args.preview}" if args.preview else "")
     if args.command == "animate":
         animation, _ = pipeline.animate(args.source, args.output, target_mesh=args.target, points=args.points,
                                         fdp=args.fdp, preview=args.preview, fap=args.fap,
                                         head_motion=args.head_motion, obj_sequence=args.obj_sequence,
                                         csv=args.csv, via=args.via, neutral=args.neutral,
-                                        smoothing=not args.no_filter, progress=progress, parts=args.parts)
+                                        smoothing=not args.no_filter, progress=progress, parts=args.parts,
+                                        workers=args.workers)
         if hasattr(animation, "driven"):  # a named rig (faceanim.driving): its own morph targets were animated
             return (f"wrote {args.output}: {len(animation)} frames on {animation.driven} named morph targets "
                     f"({len(animation.names)} of the main mesh's)")

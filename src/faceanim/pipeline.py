@@ -322,8 +322,8 @@ def _workers(workers) -> int:
 
     try:
         return worker_count(workers)
-    except ValueError as error:
-        raise InputError(str(error)) from None
+    except ValueError:
+        raise InputError(f"--workers must be a whole number from 1, got {workers!r}") from None
 
 
 def _ready_target(target, mesh_path, points, fdp, parts, progress):
