@@ -31,6 +31,21 @@ def test_a_loop_gets_a_bar_when_asked():
     assert "tracking" in shown.getvalue() and "5/5" in shown.getvalue()
 
 
+def test_a_step_said_while_a_bar_runs_gets_a_line_of_its_own():
+    """A job's placement says its steps while the tracking's bar is drawn: the bar is cleared, the
+    step is written on a clean line, and the bar is drawn again below it (on a terminal, a line
+    whose text follows a carriage return shows only that text)."""
+    shown = io.StringIO()
+    progress = Progress(shown, bars=True)
+    frames = iter(progress.bar(range(5), total=5, desc="tracking"))
+    next(frames), next(frames)
+    progress.status("placing control points on head.obj")
+    assert list(frames) == [2, 3, 4]
+    seen = [line.rsplit("\r", 1)[-1] for line in shown.getvalue().split("\n")]
+    assert "faceanim: placing control points on head.obj..." in seen
+    assert seen[-2].startswith("tracking: 100%") and seen[-1] == ""
+
+
 def test_quiet_unless_given_a_progress():
     assert as_progress(None) is QUIET and as_progress(False) is QUIET
     assert type(as_progress(True)) is Progress

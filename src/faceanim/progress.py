@@ -49,8 +49,17 @@ class Progress:
         return sys.stderr if self._stream is None else self._stream
 
     def status(self, what: str) -> None:
-        """One line, ``faceanim: <what>...``, before a single step that takes a while."""
-        print(f"faceanim: {what}...", file=self.stream, flush=True)
+        """One line, ``faceanim: <what>...``, before a single step that takes a while. While bars are
+        drawn it goes above them (a job's placement runs beside the video's tracking bar), not onto
+        the end of the bar's line."""
+        line = f"faceanim: {what}..."
+        if self.shows_bars:
+            from tqdm import tqdm
+
+            tqdm.write(line, file=self.stream)
+            self.stream.flush()
+        else:
+            print(line, file=self.stream, flush=True)
 
     @property
     def shows_bars(self) -> bool:
