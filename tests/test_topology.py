@@ -40,3 +40,20 @@ def test_component_labels_split_parts_and_are_cached():
     labels = component_labels(mesh)
     assert labels.tolist() == [0] * 9 + [1] * 9
     assert component_labels(mesh) is labels and not labels.flags.writeable
+
+
+def test_shared_edges_pair_each_inner_edge_with_its_two_triangles_in_the_first_ones_winding():
+    from faceanim.geometry.topology import open_edges, shared_edges
+
+    tetrahedron = np.array([[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]])
+    ends, first, second = shared_edges(tetrahedron)
+    assert len(ends) == 6 and not len(open_edges(tetrahedron))  # closed: every edge shared
+    for (a, b), f, g in zip(ends, first, second, strict=True):
+        assert f != g and {a, b} <= set(tetrahedron[f]) and {a, b} <= set(tetrahedron[g])
+        row = tetrahedron[f].tolist()
+        assert row[(row.index(a) + 1) % 3] == b  # a -> b is how the first triangle runs
+        other = tetrahedron[g].tolist()
+        assert other[(other.index(b) + 1) % 3] == a  # a consistently wound neighbour runs it the other way
+    strip = np.array([[0, 1, 2], [2, 1, 3], [2, 3, 4]])
+    ends, first, second = shared_edges(strip)
+    assert sorted(map(sorted, ends.tolist())) == [[1, 2], [2, 3]] and len(open_edges(strip)) == 5

@@ -24,7 +24,7 @@ from ..validation import as_array, as_index_array
 from .align import weighted_procrustes
 from .mesh import Mesh
 from .project import project_points
-from .topology import open_edges
+from .topology import open_edges, shared_edges
 
 __all__ = ["turned_over", "turned_triangles", "rigid_residual", "edge_stretch", "bend_change", "signed_distance",
            "signed_offsets", "penetration_depth"]
@@ -208,16 +208,10 @@ def bend_change(rest, positions, triangles, *, percentile: float = 95.0) -> np.n
     q = np.asarray(percentile, dtype=np.float64)
     if q.ndim > 1 or not ((q >= 0) & (q <= 100)).all():
         raise ValueError(f"percentile must be in [0, 100], got {percentile}")
-    directed = triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    edges = np.sort(directed, axis=1)
-    owner = np.repeat(np.arange(len(triangles)), 3)
-    order = np.lexsort((edges[:, 1], edges[:, 0]))
-    edges, owner, directed = edges[order], owner[order], directed[order]
-    pair = np.flatnonzero((edges[1:] == edges[:-1]).all(axis=1))  # an edge two triangles share
-    first, second = owner[pair], owner[pair + 1]
-    start, end = directed[pair, 0], directed[pair, 1]  # the edge as the first triangle runs along it
+    ends, first, second = shared_edges(triangles)
+    start, end = ends[:, 0], ends[:, 1]  # the edge as the first triangle runs along it
     out = np.zeros((len(positions), *q.shape))
-    if not len(pair):
+    if not len(ends):
         return out
 
     def angles(p):  # (..., E) degrees between the two triangles' normals, signed by the way the edge bends

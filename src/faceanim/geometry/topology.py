@@ -8,7 +8,7 @@ from scipy.sparse import csgraph
 
 from .mesh import Mesh
 
-__all__ = ["component_labels", "boundary_loops", "open_edges", "submesh"]
+__all__ = ["component_labels", "boundary_loops", "open_edges", "shared_edges", "submesh"]
 
 
 def component_labels(mesh: Mesh) -> np.ndarray:
@@ -37,6 +37,26 @@ def open_edges(triangles) -> np.ndarray:
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     edges, count = np.unique(np.sort(t[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0, return_counts=True)
     return edges[count == 1]
+
+
+def shared_edges(triangles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The edges two of ``triangles`` share (the open ones, :func:`open_edges`, are the rest): ``(E, 2)
+    int64`` the edge's two vertices in the order the first triangle runs along it, and ``(E,) int64``
+    the first and the second triangle. An edge three or more triangles share (a non-manifold fin)
+    gives a row for each consecutive pair.
+
+    >>> ends, first, second = shared_edges([[0, 1, 2], [0, 2, 3]])
+    >>> ends.tolist(), first.tolist(), second.tolist()
+    ([[2, 0]], [0], [1])
+    """
+    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    directed = t[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    edges = np.sort(directed, axis=1)
+    owner = np.repeat(np.arange(len(t)), 3)
+    order = np.lexsort((edges[:, 1], edges[:, 0]))
+    edges, owner, directed = edges[order], owner[order], directed[order]
+    pair = np.flatnonzero((edges[1:] == edges[:-1]).all(axis=1))
+    return directed[pair], owner[pair], owner[pair + 1]
 
 
 def submesh(mesh: Mesh, vertex_mask) -> tuple[Mesh, np.ndarray]:
