@@ -198,14 +198,17 @@ def test_workers_on_the_command_line_set_the_processes_that_deform_the_frames(tm
 
     monkeypatch.setattr(pipeline, "spilled", recorded)
     joy = shared("xface", "Faps", "joy.fap")
-    for extra in (["--workers", "3"], []):
+    for extra in (["--workers", "5"], []):  # 5: more than the default ever is
         assert main(["decode", str(joy), "-o", str(tmp_path / f"joy{len(extra)}.glb"), *extra]) == 0
-    assert asked == [3, worker_count()]
-    help_text = pipeline_help("decode")
-    assert f"at most {MOST_WORKERS})" in " ".join(help_text.split())
+    assert asked == [5, worker_count()]
+    video = shared("videos", "d0.mp4")
+    assert main(["animate", str(video), "-o", str(tmp_path / "d0.glb"), "--workers", "5"]) == 0
+    assert asked[-1] == 5
+    for command in ("decode", "animate"):
+        assert f"at most {MOST_WORKERS})" in " ".join(command_help(command).split())
 
 
-def pipeline_help(command: str) -> str:
+def command_help(command: str) -> str:
     import contextlib
     import io
 

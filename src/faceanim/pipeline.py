@@ -430,6 +430,7 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
 
     if via not in ("motion", "faps"):
         raise InputError(f"via must be motion or faps, got {via!r}")
+    workers = _workers(workers)
     rig_route = _named_rig_route(video, target_mesh, target, head_motion, via)
     if rig_route:
         from .driving import animate_rig
@@ -437,7 +438,8 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
         from .progress import as_progress
 
         def write_extra(animation, target):  # the rig's mesh moved by its weights: a preview, OBJ files
-            with spilled(animation, folder=Path(output).parent, progress=as_progress(progress)) as kept:
+            with spilled(animation, folder=Path(output).parent, progress=as_progress(progress),
+                         workers=workers) as kept:
                 if obj_sequence is not None:
                     write_obj_sequence(obj_sequence, kept)
                 if preview is not None:
@@ -451,7 +453,6 @@ def animate(video, output, *, target_mesh=None, points=None, fdp=None, preview=N
                    "--csv": (csv, ".csv"), "--obj-sequence": (obj_sequence, SEQUENCE_FOLDER)},
                   inputs={"VIDEO": video, "--target": target_mesh, "--points": points, "--fdp": fdp, "--parts": parts})
     neutral_window(neutral, "animate")  # said before any work is done
-    workers = _workers(workers)
     shown = as_progress(progress)
 
     def ready():
