@@ -220,6 +220,7 @@ def test_a_local_ray_gets_the_cpus_this_process_may_use_by_default(monkeypatch):
     started = []
     fake = types.SimpleNamespace(init=lambda **kwargs: started.append(kwargs["num_cpus"]))
     monkeypatch.setitem(sys.modules, "ray", fake)
+    monkeypatch.setenv("RAY_USAGE_STATS_ENABLED", "0")  # what _start_ray sets, undone after the test
     monkeypatch.setattr(dataset, "usable_cpus", lambda: 3)
     assert dataset._start_ray(None, None) is fake and dataset._start_ray(5, None) is fake
     assert started == [3, 5]

@@ -17,7 +17,14 @@ def usable_cpus(cgroup_root: str = "/sys/fs/cgroup") -> int:
     allows less time. The quota is read from cgroup v2 (``cpu.max``) or v1
     (``cpu/cpu.cfs_quota_us`` over ``cpu.cfs_period_us``) under ``cgroup_root``, for this process's
     own group (a limit set on a parent group is not seen), or at the root; none found, or unlimited,
-    leaves the affinity."""
+    leaves the affinity.
+
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as root:  # a cgroup v2 root allowing half a CPU
+    ...     _ = (Path(root) / "cpu.max").write_text("50000 100000")
+    ...     usable_cpus(root)
+    1
+    """
     usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     quota = _cpu_quota(cgroup_root)
     return max(1, min(usable, math.ceil(quota))) if quota is not None else usable

@@ -173,7 +173,7 @@ def spilled(animation: Animation, *, folder=None, progress=None, desc: str = "de
 
 def worker_count(workers=None) -> int:
     """The processes :func:`spilled` makes frames in: ``workers``, a whole number of at least 1
-    (``ValueError`` otherwise); by default the CPUs this process may use (:func:`usable_cpus`), at
+    (``ValueError`` otherwise); by default the CPUs this process may use (:func:`~faceanim.cpus.usable_cpus`), at
     most :data:`MOST_WORKERS`."""
     if workers is None:
         return max(1, min(MOST_WORKERS, usable_cpus()))
