@@ -54,6 +54,10 @@ def test_shared_edges_pair_each_inner_edge_with_its_two_triangles_in_the_first_o
         assert row[(row.index(a) + 1) % 3] == b  # a -> b is how the first triangle runs
         other = tetrahedron[g].tolist()
         assert other[(other.index(b) + 1) % 3] == a  # a consistently wound neighbour runs it the other way
+    fin = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])  # three triangles on one edge: a row per consecutive pair
+    ends, first, second = shared_edges(fin)
+    assert sorted(map(sorted, ends.tolist())) == [[0, 1], [0, 1]]
+    assert sorted(zip(first.tolist(), second.tolist(), strict=True)) == [(0, 1), (1, 2)]
     strip = np.array([[0, 1, 2], [2, 1, 3], [2, 3, 4]])
     ends, first, second = shared_edges(strip)
     assert sorted(map(sorted, ends.tolist())) == [[1, 2], [2, 3]] and len(open_edges(strip)) == 5
