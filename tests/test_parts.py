@@ -572,6 +572,39 @@ def test_turned_vectors_is_the_rotation_about_the_axis():
     np.testing.assert_allclose(turned_vectors(got, axis, -angles[:, None]), vectors, atol=1e-12)
 
 
+def test_the_avatars_lips_stay_out_of_its_teeth_where_a_lone_last_push_would_fold_them():
+    """End to end, d6 frames 560-590 onto the default avatar (eyes shut, a smile, the mouth a little
+    open): the last push out of the teeth, vertex by vertex, would turn a sliver at a mouth corner
+    over, so the deformer carries it onto the skin around (``_EASED_RADII``); pushed vertex by vertex
+    only (radius 0), the lips stayed 0.039 cm in the upper teeth. No lip in, no skin turned over."""
+    pytest.importorskip("mediapipe", reason="needs faceanim[capture]")
+    from faceanim.geometry.quality import penetration_depth, turned_triangles
+    from faceanim.geometry.topology import submesh
+    from faceanim.inputs import capture_motion, load_target
+    from faceanim.motion import Motion
+    from faceanim.retarget.contact import TeethContact
+    from faceanim.retarget.follow import animate_motion
+
+    video = shared("videos", "d6.mp4")
+    if not video.exists():
+        pytest.skip("needs ../shared/data/videos/d6.mp4")
+    tracked = capture_motion(video)
+    motion = Motion(tracked.names, tracked.neutral, tracked.displacements[560:590], tracked.pose[560:590],
+                    tracked.fps, tracked.fapu)
+    target = load_target(None)
+    parts = face_parts(target)
+    skin = np.flatnonzero(parts.mask("skin"))
+    lips = skin[TeethContact(target, parts, skin).lips]
+    teeth = parts.mask("upper_teeth") | parts.mask("lower_teeth")
+    teeth_triangles = submesh(target.mesh, teeth)[0].triangles
+    rest = target.mesh.vertices
+    assert penetration_depth(rest[lips][None], rest[teeth][None], teeth_triangles).max() == 0.0
+    positions = animate_motion(motion, target).chunk(0, len(motion))
+    assert penetration_depth(positions[:, lips], positions[:, teeth], teeth_triangles).max() < 1e-3  # cm
+    skin_triangles = target.mesh.triangles[parts.mask("skin")[target.mesh.triangles].all(axis=1)]
+    assert turned_triangles(rest, positions, skin_triangles).max() == 0
+
+
 def test_teeth_cover_sees_skin_carried_behind_the_teeth(ict):
     """The skin covering the lower teeth at rest, moved 1.5 cm back (through them): the teeth are ahead
     of most of it; moved 1 cm forward, or left at rest, of none."""
