@@ -48,15 +48,16 @@ def test_apply_changes_only_the_brows_heights_and_keeps_frames_without_scores():
     scores[30] = np.nan  # a gap the capture filled: landmarks but no scores
     drive = drive_of(scores)
     moved = np.random.default_rng(0).normal(size=(40, 478, 3))
-    moved[:, drive.points, 1] = 5.0  # a tracked rise well past what the scores allow
+    moved[:, drive.points, 1] = 0.1  # a tracked rise the scores call for more of
     before = moved.copy()
     drive.apply(moved, 0)
     others = np.setdiff1d(np.arange(478), drive.points)
     np.testing.assert_array_equal(moved[:, others], before[:, others])
     np.testing.assert_array_equal(moved[:, drive.points, ::2], before[:, drive.points, ::2])  # x and z kept
     np.testing.assert_array_equal(moved[30, drive.points], before[30, drive.points])
-    raised = drive.heights[35] > 0
-    np.testing.assert_allclose(moved[35, drive.points[raised], 1], drive.heights[35, raised])
+    raised = drive.heights[35] > 0.1 / TRACKED_SHARE
+    assert raised.any()
+    np.testing.assert_allclose(moved[35, drive.points[raised], 1], 0.1 / TRACKED_SHARE)
     chunk = before[32:40].copy()
     np.testing.assert_array_equal(drive.apply(chunk, 32), moved[32:40])  # chunk by chunk, as streamed
 
@@ -64,12 +65,14 @@ def test_apply_changes_only_the_brows_heights_and_keeps_frames_without_scores():
 def test_the_geometry_must_agree_on_the_way():
     """Scores calling for a raise lift a brow no further than its tracked rise over the tracked share;
     a brow the landmarks see still, or lowered, stays where it is (a painted face's blink scores a brow
-    raise the landmarks do not show)."""
+    raise the landmarks do not show); a brow the landmarks see higher than the scores say keeps its
+    tracked height (the scores only add)."""
     drive = drive_of(scores_over(60, browInnerUp=1.0))
     inner = list(drive.points).index(BROWS["Left"][0][0])
     full = drive.heights[-1, inner]
     moved = np.zeros((60, 478, 3))
-    for tracked, expected in ((0.0, 0.0), (-0.2, 0.0), (0.5 * full * TRACKED_SHARE, 0.5 * full), (full, full)):
+    for tracked, expected in ((0.0, 0.0), (-0.2, -0.2), (0.5 * full * TRACKED_SHARE, 0.5 * full), (full, full),
+                              (1.5 * full, 1.5 * full)):
         moved[-1, BROWS["Left"][0][0], 1] = tracked
         drive.apply(moved, 0)
         np.testing.assert_allclose(moved[-1, BROWS["Left"][0][0], 1], expected, atol=1e-12)
@@ -93,3 +96,18 @@ def test_noisy_scores_leave_the_neutral_frames_at_rest():
     assert drive.heights[-1].max() > 0.5 * RAISE * 3.0
     unfiltered = BrowDrive.of_scores(scores, NAMES, np.arange(60) / 25.0, 3.0, np.arange(5, 15), smoothing=None)
     np.testing.assert_array_equal(unfiltered.heights[5:15], 0.0)
+
+
+def test_scores_that_miss_a_raise_the_landmarks_show_do_not_hold_the_brows_back():
+    """The Face Landmarker can score a full brow raise at 0.05 (one ICT tuning identity): a brow whose
+    landmarks rise more than those scores' height keeps its tracked rise, frame by frame; a lowered
+    brow the scores barely lower keeps its tracked fall."""
+    drive = drive_of(scores_over(60, browInnerUp=0.12, browDownLeft=0.12))
+    points = np.asarray(drive.points)
+    moved = np.zeros((60, 478, 3))
+    moved[40:, points, 1] = np.linspace(0.3, 0.6, 20)[:, None]
+    moved[50:, points[:10], 1] = -0.4  # the left brow lowered, past what its scores say
+    before = moved.copy()
+    drive.apply(moved, 0)
+    assert (np.abs(drive.heights[40:]) < 0.3).all()  # the scores say less than the landmarks show
+    np.testing.assert_allclose(moved[40:, points, 1], before[40:, points, 1])

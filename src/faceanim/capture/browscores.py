@@ -4,20 +4,25 @@ The tracker's brow landmarks follow a brow raise by about a third (0.33-0.40 of 
 renders, `benchmarks/roundtrip_ict.py`): its mesh is held to a typical shape. Its blendshape scores are
 trained on exactly that cue. Each brow point's height in the head frame is therefore read from the
 scores: for a score ``s`` whose highest value over the neutral frames is ``s0``, ``(s - s0) / (1 - s0)``
-clipped to [0, 1] says how far the expression is on (so the neutral frames keep their brows exactly
-where the rest face has them), and
+clipped to [0, 1] says how far the expression is on (so the neutral frames' scores add nothing to
+their tracked brows), and
 
 * ``browInnerUp`` raises the inner end of each brow, ``browOuterUp{Left,Right}`` the outer end, by
   :data:`RAISE` x ENS0 at full strength, blended along the brow;
 * ``browDown{Left,Right}`` lowers the whole brow by :data:`LOWER` x ENS0.
 
 The scores say how far; the geometry must agree on the way. A brow point rises to the scores' height
-only as far as :data:`TRACKED_SHARE` of its tracked rise allows (``min(height, rise / TRACKED_SHARE)``),
-and falls the same way: on a painted face the Face Landmarker scores a brow raise during every blink
-(browOuterUp 0.3-0.4) while the brow landmarks stay put, and a face whose brows it cannot see scores
-none. Only the brow points' vertical movement is changed; their sideways and depth movement stay as
-tracked, and so does every other point. A frame without scores (a gap the capture filled) keeps its
-tracked heights. The constants were chosen on one ICT identity pair (seed 3) and reported on others
+only as far as :data:`TRACKED_SHARE` of its tracked rise allows, and falls the same way: on a painted
+face the Face Landmarker scores a brow raise during every blink (browOuterUp 0.3-0.4) while the brow
+landmarks stay put. The scores only add: a brow never ends below its tracked rise (or above its tracked
+fall), since the scores can miss what the landmarks see (on one ICT identity of the five tuning ones the
+brow scores peak at 0.05 in a full raise the landmarks show as 0.6 cm; held to the scores, the raise was
+lost). So a point tracked ``rise`` with the scores' ``height > 0`` ends at
+``max(rise, min(height, rise / TRACKED_SHARE))`` (for ``height < 0``, the same with max and min
+swapped); a tracked dip the scores call a raise (a painted face's blink) stays as tracked. Only the
+brow points' vertical movement is changed; their sideways and depth movement stay as tracked, and so
+does every other point. A frame without scores (a gap the capture filled) keeps its tracked heights.
+The constants were chosen on one ICT identity pair (seed 3) and reported on others
 (`benchmarks/brow_scores.py`).
 """
 
@@ -98,12 +103,13 @@ class BrowDrive:
 
     def apply(self, displacements, start: int) -> np.ndarray:
         """``displacements (t, L, 3)`` of frames ``start .. start + t`` (head frame, cm), changed in
-        place: each brow point's height is the scores', as far as its tracked height agrees (see the
-        module); returned."""
+        place: each brow point's height is the scores', as far as its tracked height agrees, and never
+        short of its tracked height (see the module); returned."""
         heights = self.heights[start:start + len(displacements)]
         column = displacements[:, self.points, 1]
         seen = column / TRACKED_SHARE
-        agreed = np.where(heights > 0, np.clip(seen, 0.0, heights), np.clip(seen, heights, 0.0))
+        agreed = np.where(heights > 0, np.maximum(column, np.minimum(heights, seen)),
+                          np.minimum(column, np.maximum(heights, seen)))
         have = np.isfinite(heights) & np.isfinite(column)
         displacements[:, self.points, 1] = np.where(have, agreed, column)
         return displacements
