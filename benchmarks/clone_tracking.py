@@ -39,6 +39,11 @@ build frames (``DEFAULT_WALLS``).
     average when the run began is given (2 cores, shared: a load above 2 slows every figure).
     Goal >= 10 frames/s on 2 cores.
 
+(a), (b) and the GL speed are given for two analyses: the default, which reads the clone's textures
+once per box pixel (from textures blurred to the box's scale, :func:`faceanim.speaker.lipraster.prefilter`),
+and the supersampled one (``speaker track --supersample``), which reads them at every frame pixel under
+a box pixel and averages them as the frame's pixels are averaged.
+
 Also draws ``benchmarks/results/clone_tracking_<clip>.png``: three hard scored frames of each clip (the
 widest open, the narrowest (rounded), the widest spread), cropped about the mouth, with the tracked
 clone's lip contours (green) and the landmark-based analysis's (blue).
@@ -68,6 +73,7 @@ FLOOR_EVALS = 600
 
 
 FOLDS = ("first", "last")  # the model built on the first 70% (scored on the rest), or on the last 70%
+ANALYSES = (("default", {}), ("supersampled", {"supersample": True}))  # CloneAnalyser's options
 
 
 def fold_frames(count: int, fold: str) -> tuple[str, list[np.ndarray]]:
@@ -95,11 +101,11 @@ def corr(a, b) -> float:
     return float(np.corrcoef(a, b)[0, 1])
 
 
-def synthetic(model, appearance, video_frames, tracked, segment, width, height):
+def synthetic(model, appearance, video_frames, tracked, segment, width, height, supersample=False):
     """(a): each parameter's RMS error on one segment, in the model's units (one standard deviation
     over the build frames) and over its spread on the segment; and the worst parameter's error over
     its spread when each frame starts at its own truth with :data:`FLOOR_EVALS` evaluations (where the
-    cost's minimum lies: what no path or cap can improve)."""
+    cost's minimum lies: what no path or cap can improve). ``supersample``: the analyser's."""
     from faceanim.speaker.analysis import CloneAnalyser, pose_matrix
     from faceanim.speaker.clone import CloneRenderer
 
@@ -114,7 +120,7 @@ def synthetic(model, appearance, video_frames, tracked, segment, width, height):
     poses = pose_matrix(rigid)
     found = []
     with CloneAnalyser(model, appearance, width=width, height=height, mouth_width=tracked.mouth_width,
-                       camera=tracked.camera) as analyser:
+                       camera=tracked.camera, supersample=supersample) as analyser:
         analyser.adapt(frames[:ADAPT], truth[:ADAPT], poses[:ADAPT])
         previous = truth[0]
         for image, pose in zip(frames, poses, strict=True):
@@ -123,7 +129,7 @@ def synthetic(model, appearance, video_frames, tracked, segment, width, height):
     rms = np.sqrt(((np.array(found) - truth) ** 2).mean(axis=0))
     floor = []
     with CloneAnalyser(model, appearance, width=width, height=height, mouth_width=tracked.mouth_width,
-                       camera=tracked.camera, max_evals=FLOOR_EVALS) as analyser:
+                       camera=tracked.camera, max_evals=FLOOR_EVALS, supersample=supersample) as analyser:
         analyser.adapt(frames[:ADAPT], truth[:ADAPT], poses[:ADAPT])
         for image, pose, a in zip(frames, poses, truth, strict=True):
             floor.append(analyser.analyse(image, a, pose).parameters)
@@ -175,7 +181,11 @@ def main() -> None:
     for clip in CLIPS:
         if not (VIDEOS / f"{clip}.mp4").is_file():
             raise SystemExit(f"missing {VIDEOS / f'{clip}.mp4'}: the shared data is needed")
-    rows_a, rows_b, rows_c, draws_a, draws_b, stills = [], [], [], [], [], []
+    rows_a = {name: [] for name, _ in ANALYSES}
+    rows_b = {name: [] for name, _ in ANALYSES}
+    draws_a = {name: [] for name, _ in ANALYSES}
+    draws_b = {name: [] for name, _ in ANALYSES}
+    rows_c, stills = [], []
     with tempfile.TemporaryDirectory() as folder:
         for clip in CLIPS:
             video = VIDEOS / f"{clip}.mp4"
@@ -191,33 +201,39 @@ def main() -> None:
                 make_textures(video, path, model=path, frames=build)
                 model, appearance = read_speaker(path), read_appearance(path)
                 runs = {}
-                for raster in ("numpy", "gl") if fold == FOLDS[0] else ("gl",):
+                timed = [(f"gl, {name}", name, "gl", options) for name, options in ANALYSES]
+                if fold == FOLDS[0]:
+                    timed.insert(0, ("numpy, default", None, "numpy", {}))
+                for label, name, raster, options in timed:
                     load = os.getloadavg()[0]
-                    runs[raster] = track_speaker(video, Path(folder) / f"{clip}_{raster}.csv", model=path,
-                                                 raster=raster)
+                    run = track_speaker(video, Path(folder) / f"{clip}_{raster}.csv", model=path, raster=raster,
+                                        **options)
+                    if name is not None:
+                        runs[name] = run
                     if fold == FOLDS[0]:
-                        rows_c.append(f"| {clip} | {raster} | {T} | {int(np.median(runs[raster].evaluations))} | "
-                                      f"{int(runs[raster].evaluations.max())} | {T / runs[raster].seconds:.1f} | "
-                                      f"{load:.1f} |")
-                tracked = runs["gl"]
-                opening, width = lip_measures(model, tracked.parameters)
+                        rows_c.append(f"| {clip} | {label} | {T} | {int(np.median(run.evaluations))} | "
+                                      f"{int(run.evaluations.max())} | {T / run.seconds:.1f} | {load:.1f} |")
+                tracked = runs["default"]
                 for segment in segments:
-                    name = f"{clip} {fold} 70%, frames {segment[0]}-{segment[-1]}"
-                    a, b = tracked.parameters[segment], tracked.landmark_parameters[segment]
-                    c_open = corr(opening[segment], mp_opening[segment])
-                    c_width = corr(width[segment], mp_width[segment])
-                    c_params = [corr(a[:, k], b[:, k]) for k in range(model.parameter_count)]
-                    r_params = np.sqrt(((a - b) ** 2).mean(axis=0)) / b.std(axis=0)
-                    draws_b.append((min(c_open, c_width), c_open, c_width, float(np.median(c_params)),
-                                    float(np.median(r_params))))
-                    rows_b.append(f"| {name} | {c_open:.2f} | {c_width:.2f} | "
-                                  + " ".join(f"{v:.2f}" for v in c_params) + " | "
-                                  + " ".join(f"{v:.2f}" for v in r_params) + " |")
-                    rms, error, lowest = synthetic(model, appearance, frames, tracked, segment, capture.width,
-                                                   capture.height)
-                    draws_a.append((float(rms.max()), float(error.max()), lowest))
-                    rows_a.append(f"| {name} | " + " ".join(f"{v:.2f}" for v in rms) + f" | {rms.max():.2f} | "
-                                  + " ".join(f"{v:.2f}" for v in error) + f" | {error.max():.2f} | {lowest:.2f} |")
+                    draw = f"{clip} {fold} 70%, frames {segment[0]}-{segment[-1]}"
+                    for name, options in ANALYSES:
+                        opening, width = lip_measures(model, runs[name].parameters)
+                        a, b = runs[name].parameters[segment], runs[name].landmark_parameters[segment]
+                        c_open = corr(opening[segment], mp_opening[segment])
+                        c_width = corr(width[segment], mp_width[segment])
+                        c_params = [corr(a[:, k], b[:, k]) for k in range(model.parameter_count)]
+                        r_params = np.sqrt(((a - b) ** 2).mean(axis=0)) / b.std(axis=0)
+                        draws_b[name].append((min(c_open, c_width), c_open, c_width, float(np.median(c_params)),
+                                              float(np.median(r_params))))
+                        rows_b[name].append(f"| {draw} | {c_open:.2f} | {c_width:.2f} | "
+                                            + " ".join(f"{v:.2f}" for v in c_params) + " | "
+                                            + " ".join(f"{v:.2f}" for v in r_params) + " |")
+                        rms, error, lowest = synthetic(model, appearance, frames, tracked, segment, capture.width,
+                                                       capture.height, **options)
+                        draws_a[name].append((float(rms.max()), float(error.max()), lowest))
+                        rows_a[name].append(f"| {draw} | " + " ".join(f"{v:.2f}" for v in rms)
+                                            + f" | {rms.max():.2f} | " + " ".join(f"{v:.2f}" for v in error)
+                                            + f" | {error.max():.2f} | {lowest:.2f} |")
                 if fold == FOLDS[0]:
                     picks = overlays(clip, model, appearance, frames, tracked, np.concatenate(segments), capture.width,
                                      capture.height)
@@ -228,38 +244,48 @@ def main() -> None:
     def summary(values, worst) -> str:
         return f"{np.median(values):.2f} (worst {worst(values):.2f})"
 
-    count = len(draws_a)
+    def row(measure, draws, at, worst, goal="") -> str:
+        return (f"| {measure} | " + " | ".join(summary([d[at] for d in draws[name]], worst) for name, _ in ANALYSES)
+                + f" | {goal} |")
+
+    count = len(draws_a["default"])
     lines = [
         "# Analysis by synthesis with the speaker's clone (issue 18)", "",
         "`flock /tmp/faceanim-bench.lock python benchmarks/clone_tracking.py`: model and textures built on 70% of "
         "each speech clip (the first 70%, or the last), scored on the other 30% cut into 2 segments "
         f"({count} draws). Comparison: colour on the synthesis mesh around the mouth, the simplex shaped by "
-        "the cost (`speaker/analysis.py`). Parameters: " + ", ".join(names) + ".", "",
+        "the cost (`speaker/analysis.py`). Parameters: " + ", ".join(names) + ". Two analyses: *default*, the "
+        "clone's textures read once per box pixel from textures blurred to the box's scale; *supersampled* "
+        "(`speaker track --supersample`), read at every frame pixel under a box pixel and averaged as the "
+        "frame's pixels are.", "",
         f"## Summary (median over the {count} draws, worst in brackets)", "",
-        "| measure | result | goal |", "|---|---|---|",
-        "| (a) synthetic, worst parameter's RMS error, in the model's standard deviations | "
-        f"{summary([d[0] for d in draws_a], max)} | |",
-        "| (a) synthetic, worst parameter's RMS error / its spread on the segment | "
-        f"{summary([d[1] for d in draws_a], max)} | <= 0.1 |",
-        "| (a) the same, each frame started at its truth with "
-        f"{FLOOR_EVALS} evaluations (where the cost's minimum lies) | {summary([d[2] for d in draws_a], max)} | |",
-        f"| (b) real, lip opening correlation with MediaPipe | {summary([d[1] for d in draws_b], min)} | >= 0.9 |",
-        f"| (b) real, lip width correlation with MediaPipe | {summary([d[2] for d in draws_b], min)} | >= 0.9 |",
-        f"| (b) real, median parameter correlation with the landmark-based analysis | "
-        f"{summary([d[3] for d in draws_b], min)} | |",
-        "| (b) real, median parameter RMS difference / spread against it | "
-        f"{summary([d[4] for d in draws_b], max)} | |",
-        "", "## (a) Synthetic: frames drawn by the clone at known parameters, lighting falling to 75%", "",
-        "| draw | RMS error per parameter (model's std) | worst | RMS error / segment's spread | worst "
-        f"| worst from the truth, {FLOOR_EVALS} evaluations |",
-        "|---|---|---|---|---|---|", *rows_a,
-        "", "## (b) Real scored frames", "",
-        "| draw | opening corr. | width corr. | parameter corr. with landmark analysis | RMS / spread |",
-        "|---|---|---|---|---|", *rows_b,
+        "| measure | " + " | ".join(name for name, _ in ANALYSES) + " | goal |", "|---|---|---|---|",
+        row("(a) synthetic, worst parameter's RMS error, in the model's standard deviations", draws_a, 0, max),
+        row("(a) synthetic, worst parameter's RMS error / its spread on the segment", draws_a, 1, max, "<= 0.1"),
+        row(f"(a) the same, each frame started at its truth with {FLOOR_EVALS} evaluations (where the cost's "
+            "minimum lies)", draws_a, 2, max),
+        row("(b) real, lip opening correlation with MediaPipe", draws_b, 1, min, ">= 0.9"),
+        row("(b) real, lip width correlation with MediaPipe", draws_b, 2, min, ">= 0.9"),
+        row("(b) real, median parameter correlation with the landmark-based analysis", draws_b, 3, min),
+        row("(b) real, median parameter RMS difference / spread against it", draws_b, 4, max),
+    ]
+    for name, _ in ANALYSES:
+        lines += [
+            "", f"## (a) Synthetic, {name}: frames drawn by the clone at known parameters, lighting falling to 75%",
+            "", "| draw | RMS error per parameter (model's std) | worst | RMS error / segment's spread | worst "
+            f"| worst from the truth, {FLOOR_EVALS} evaluations |",
+            "|---|---|---|---|---|---|", *rows_a[name]]
+    for name, _ in ANALYSES:
+        lines += [
+            "", f"## (b) Real scored frames, {name}", "",
+            "| draw | opening corr. | width corr. | parameter corr. with landmark analysis | RMS / spread |",
+            "|---|---|---|---|---|", *rows_b[name]]
+    lines += [
         "", "## (c) Speed: the analysis alone, cap 150 evaluations a frame, 2 shared cores (first fold)", "",
-        "| clip | rasteriser | frames | median evaluations | most | frames/s | load average at start |",
+        "| clip | rasteriser, analysis | frames | median evaluations | most | frames/s | load average at start |",
         "|---|---|---|---|---|---|---|", *rows_c,
-        "", "## Overlays of hard frames (first fold; tracked clone green, landmark-based analysis blue)", "", *stills,
+        "", "## Overlays of hard frames (first fold, default analysis; tracked clone green, landmark-based "
+        "analysis blue)", "", *stills,
     ]
     publish("clone_tracking.md", lines)
 

@@ -161,10 +161,31 @@ def test_the_mix_follows_the_weights():
 
 def test_prefilter_keeps_the_mean_and_a_ramp():
     ramp = np.tile(np.arange(32, dtype=np.float32), (32, 1))[None]
-    filtered = prefilter(ramp, 4.5)  # blurred, then averaged over blocks of 3 texels
+    filtered = prefilter(ramp, 9.0)  # blurred, then averaged over blocks of 3 texels
     assert filtered.shape == (1, 10, 10)
-    assert np.allclose(filtered[0, :, 2:8], 3 * np.arange(2, 8) + 1, atol=1e-3)  # linear: the blocks' centres
+    assert np.allclose(filtered[0, :, 3:7], 3 * np.arange(3, 7) + 1, atol=1e-3)  # linear: the blocks' centres
     assert np.array_equal(prefilter(ramp, 0.5), ramp)  # under a texel: bilinear reading is the filter
+
+
+@pytest.mark.parametrize("footprint", [2.0, 4.5, 7.0, 12.0])
+def test_the_prefiltered_texture_read_bilinearly_spreads_a_texel_as_a_box_pixel_does(footprint):
+    """One bright texel, prefiltered and read bilinearly (at the filtered texels' own coordinates, as the
+    rasteriser reads it), spreads over a variance of ``footprint^2 / 12`` texels squared, a box pixel's,
+    plus the sixth of a texel squared the renderer's own bilinear reads add: the clone drawn in the box
+    is blurred as the frame averaged into it is. (Blurring by the footprint's spread and then averaging the
+    blocks and reading bilinearly on top, as before, spread it 1.5-2.3 times wider.)"""
+    S = 96
+    impulse = np.zeros((1, S, S), np.float32)
+    impulse[0, S // 2, S // 2] = 1.0
+    k = prefilter_block(footprint)
+    filtered = prefilter(impulse, footprint)
+    raster = NumpyLipRaster([[0, 1, 2]], [[0, 0], [1, 0], [0, 1]], filtered, width=4, height=4)
+    x = np.arange(S * 4) / 4 + 0.125  # the original's texel coordinates, finely
+    read = raster.sample(np.c_[x / k / filtered.shape[2], np.full_like(x, (S // 2 + 0.5) / k / filtered.shape[1])])
+    profile = read[:, 0] / read[:, 0].sum()
+    mean = (profile * x).sum()
+    variance = (profile * (x - mean) ** 2).sum()
+    assert variance == pytest.approx(footprint ** 2 / 12 + 1 / 6, rel=0.05), (k, variance)
 
 
 def test_a_prefiltered_texture_is_read_where_the_original_is():
@@ -174,15 +195,39 @@ def test_a_prefiltered_texture_is_read_where_the_original_is():
     to a texel."""
     S = 32
     ramp = np.tile(np.arange(S, dtype=np.float32) + 0.5, (S, 1))[None]  # value = the texel coordinate
-    k = prefilter_block(4.5)
-    filtered = prefilter(ramp, 4.5)
+    k = prefilter_block(9.0)
+    filtered = prefilter(ramp, 9.0)
     assert k == 3 and filtered.shape == (1, 10, 10)
     raster = NumpyLipRaster([[0, 1, 2]], [[0, 0], [1, 0], [0, 1]], filtered, width=4, height=4)
-    u = np.linspace(0.25, 0.75, 11)
+    u = np.linspace(0.4, 0.6, 11)  # away from the edges the blur reaches
     at = u * S / k / filtered.shape[2]  # the filtered texture's own texture coordinate
     read = raster.sample(np.c_[at, np.full_like(at, 0.5)])[:, 0]
     assert np.allclose(read, u * S, atol=1e-3)
     assert np.abs(raster.sample(np.c_[u, np.full_like(u, 0.5)])[:, 0] - u * S).max() > 0.3
+
+
+def test_supersampling_averages_the_texture_over_the_pixel_and_keeps_its_coverage():
+    """A checkerboard texture over a mesh: drawn with ``supersample=3`` each covered pixel is the mean of
+    the same mesh drawn 3 times larger over its 3 x 3 sub-pixels (where those are all covered), and the
+    covered pixels are those the plain drawing covers."""
+    rng = np.random.default_rng(4)
+    from scipy.spatial import Delaunay
+
+    xy = np.r_[rng.uniform(3, 21, (12, 2)), [[1.2, 1.1], [22.7, 1.4], [22.5, 16.8], [1.6, 16.6]]]
+    triangles = Delaunay(xy).simplices
+    uv = (xy - 1) / 22
+    checker = (np.indices((24, 24)).sum(axis=0) % 2).astype(np.float32)
+    textures = np.stack([checker, 1 - checker, rng.uniform(0, 1, (24, 24)).astype(np.float32)])
+    weights = [0.5, 0.2, 0.3]
+    plain = NumpyLipRaster(triangles, uv, textures, width=24, height=18, background=-1.0)(xy, weights)
+    fine = NumpyLipRaster(triangles, uv, textures, width=72, height=54, background=-1.0)(xy * 3, weights)
+    super_ = NumpyLipRaster(triangles, uv, textures, width=24, height=18, background=-1.0, supersample=3)(xy, weights)
+    assert np.array_equal(super_ >= 0, plain >= 0)
+    blocks = fine.reshape(18, 3, 24, 3)
+    whole = (blocks >= 0).all(axis=(1, 3))
+    assert whole.sum() > 250
+    assert np.allclose(super_[whole], blocks.mean(axis=(1, 3))[whole], atol=1e-5)
+    assert np.abs(plain[whole] - super_[whole]).max() > 0.1  # the checker's texels are finer than a pixel
 
 
 def test_colour_textures_are_drawn_channel_by_channel():
@@ -226,6 +271,10 @@ def test_numpy_and_gl_rasterisers_agree():
     with GlLipRaster(triangles, uv, colours, width=48, height=36, background=-1.0) as gl:
         theirs = gl(xy, weights)
     assert theirs.shape == (36, 48, 3) and np.abs(mine - theirs).max() < 1e-2
+    mine = NumpyLipRaster(triangles, uv, colours, width=48, height=36, background=-1.0, supersample=3)(xy, weights)
+    with GlLipRaster(triangles, uv, colours, width=48, height=36, background=-1.0, supersample=3) as gl:
+        theirs = gl(xy, weights)
+    assert np.abs(mine - theirs).max() < 1e-2
 
 
 def test_the_gl_rasteriser_leaves_out_only_triangles_that_cover_no_pixel():
@@ -363,6 +412,26 @@ def test_the_colour_costs_least_at_the_truth_along_each_parameter(clone):
                 costs.append(analyser._difference(analyser.clone_image(a, np.eye(4), origin), target))
             assert np.argmin(costs) == 4, (k, np.round(costs, 4))
             assert costs[0] > costs[4] and costs[-1] > costs[4]
+
+
+def test_the_supersampled_clone_is_its_own_frame_averaged_into_the_box(clone):
+    """The clone drawn at the frame's full size (the whole mesh; levels cut to whole numbers) and averaged
+    into the box, against the analyser's clone at the same parameters, over 8 postures: supersampled,
+    at least 95% of the box's pixels are the same to the frame's cut (0 to 1 level above it; the rest
+    straddle two triangles, whose texture maps differ, at the moving inner lips); read once per box
+    pixel from blurred textures, at most 85%."""
+    model, appearance = clone
+    shares = {True: [], False: []}
+    for truth in _sequence():
+        frame = render_frame(model, appearance, truth, np.eye(4), 160, 160, analysis=False)
+        for supersample in shares:
+            with _analyser(model, appearance, supersample=supersample) as analyser:
+                assert analyser.factor == 2 and analyser.supersample == (2 if supersample else 1)
+                origin = analyser.box_origin(truth, np.eye(4))
+                above = analyser.clone_image(truth, np.eye(4), origin) - analyser.frame_image(frame, origin)
+            shares[supersample].append(((above > -1e-3) & (above < 1 + 1e-3)).all(axis=2).mean())
+    assert min(shares[True]) >= 0.95, shares
+    assert max(shares[False]) <= 0.85, shares
 
 
 def _polygon_centroid(xy):
@@ -503,6 +572,24 @@ def test_track_refuses_a_model_without_textures_in_one_line_and_writes_nothing(t
     with pytest.raises(InputError, match=f"over {parameters + 6} parameters \\(with --rigid\\)"):
         track_speaker(tmp_path / "v.mp4", out / "p.csv", model=tmp_path / "bare.npz", max_evals=parameters + 1,
                       rigid=True)
+
+
+@pytest.mark.parametrize("flag", [[], ["--supersample"]])
+def test_track_passes_supersample_to_the_analysis(tmp_path, monkeypatch, capsys, flag):
+    """``speaker track --supersample`` reaches ``track_speaker`` (and so the analyser); without it, not."""
+    import faceanim.speakertrack
+
+    seen = {}
+
+    def spy(video, output, **options):
+        seen.update(options)
+        raise InputError("stopped by the test")
+
+    monkeypatch.setattr(faceanim.speakertrack, "track_speaker", spy)
+    assert main(["speaker", "track", str(tmp_path / "v.mp4"), "--model", str(tmp_path / "m.npz"),
+                 "-o", str(tmp_path / "p.csv"), *flag]) == 2
+    assert seen["supersample"] is bool(flag)
+    assert "stopped by the test" in capsys.readouterr().err
 
 
 @pytest.fixture(scope="module")

@@ -196,6 +196,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--rigid", action="store_true", help="also analyse the head's rigid motion (6 more parameters, "
                                                         "a correction of the tracker's pose)")
     p.add_argument("--field", choices=("top", "bottom"), help="interlaced footage: analyse one field's rows only")
+    p.add_argument("--supersample", action="store_true",
+                   help="draw the clone as the frame is averaged into the comparison's box: its textures read at "
+                        "every frame pixel (closer to the truth on the clone's own frames, about half the speed)")
     p.add_argument("--raster", choices=("gl", "numpy"),
                    help="the lip-probability renderer (default gl where it can run, else numpy; see "
                         "benchmarks/results/clone_tracking.md)")
@@ -523,6 +526,7 @@ def _run(args, progress) -> str:
             tracked = track_speaker(args.video, args.output, model=args.model, fap=args.fap, overlay=args.overlay,
                                     motion_out=args.motion_out, max_evals=args.max_evals, rigid=args.rigid,
                                     field=args.field, raster=args.raster, neutral=args.neutral,
+                                    supersample=args.supersample,
                                     smoothing=not args.no_filter, progress=progress)
             T = len(tracked.parameters)
             analysed = int(tracked.valid.sum())

@@ -94,7 +94,7 @@ def _draw(image, xy, triangles, colour) -> None:
 def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=None, max_evals: int = 150,
                   rigid: bool = False,
                   field=None, raster: str | None = None, neutral=None, smoothing: bool = True,
-                  progress=None) -> TrackedSpeech:
+                  progress=None, supersample: bool = False) -> TrackedSpeech:
     """``faceanim speaker track``: the articulatory parameters of every frame of ``video`` (written
     to ``output``, ``.csv``: ``frame, timestamp, <parameter names>`` as ``faceanim speaker analyse
     --params-csv`` writes), the FAPs they give through the model (``fap``, ``.fap``), the analysed
@@ -106,7 +106,10 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     ``model``: a speaker file with an appearance (``faceanim speaker textures``); ``max_evals``: the
     cap on evaluations per frame; ``field``: ``"top"`` or ``"bottom"`` analyses one field of
     interlaced footage (its rows only: the overlay has half the rows); ``raster``: ``"gl"``,
-    ``"numpy"`` or None (GL where it can run, else numpy; :mod:`faceanim.speaker.lipraster`).
+    ``"numpy"`` or None (GL where it can run, else numpy; :mod:`faceanim.speaker.lipraster`);
+    ``supersample``: the clone's textures read at every frame pixel of the box, as the frame is
+    averaged (:class:`~faceanim.speaker.analysis.CloneAnalyser`'s ``supersample``: closer on the
+    clone's own frames, about half the speed).
 
     Raises
     ------
@@ -186,7 +189,8 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     xy = _project(camera, poses[first], lips) * capture.width
     mouth_width = float(np.ptp(xy[:, 0]))
     with CloneAnalyser(speaker, appearance, width=capture.width, height=height, mouth_width=mouth_width,
-                       max_evals=int(max_evals), rigid=rigid, raster=raster, field=field, camera=camera) as analyser:
+                       max_evals=int(max_evals), rigid=rigid, raster=raster, field=field, camera=camera,
+                       supersample=bool(supersample)) as analyser:
         outside = [t for t in np.flatnonzero(usable)
                    if not analyser.box_inside(analyser.box_origin(start[t], poses[t]))]
         if outside:

@@ -60,12 +60,15 @@ _INNER = (78, 191, 80, 81, 13, 311, 310, 415, 308, 318, 402, 14, 178, 88)
 _RING = 8
 _RING_AXES = (0.95, 0.7)  # in mouth widths: the ring lies beyond the box
 _BOX = (1.5, 0.85)  # the box around the mouth, in mouth widths: the lips and their surroundings, not the nostrils
-# The box's width in its own pixels (the frame is averaged down to it). The clone's own frames tracked
-# back (benchmarks/clone_tracking.py (a)) sit 0.22 of the spread off on a median draw even started at
-# the truth: the clone drawn at the box's size misses the frame averaged down to it. At 96 the first
-# folds' draws went 0.35 / 0.17 / 0.11 / 0.14 -> 0.16 / 0.19 / 0.08 / 0.06 (from the truth 0.05-0.11),
-# but speech_woman (mouth 74 pixels: the box at full size) ran at 8.6-9.4 frames/s against 14-16, under
-# the goal of 10; kept at 64.
+# The box's width in its own pixels (the frame is averaged down to it). On the clone's own frames
+# (benchmarks/clone_tracking.py (a)) the cost's minimum lies off the truth wherever the clone drawn at
+# the box's size misses the frame averaged down to it: 0.23 of a parameter's spread on a median draw
+# with the textures blurred too wide (lipraster.prefilter), 0.17 with the blur matched to a box
+# pixel's (the same day), 0.07 with ``supersample`` (the textures read at every frame pixel, as the
+# frame's are averaged), which costs half the speed (5.1 / 8.9 frames/s against 12.4 / 13.7 on the
+# speech clips, goal 10). At 96 the box itself went 0.35 / 0.17 / 0.11 / 0.14 -> 0.16 / 0.19 / 0.08 /
+# 0.06 on the first folds' draws, but speech_woman (mouth 74 pixels: the box at full size) ran at
+# 8.6-9.4 frames/s against 14-16; kept at 64.
 _BOX_PIXELS = 64
 # The prior on the articulatory parameters (unit variance over the build frames): ``prior x mean(a^2)``
 # is added to the difference, holding what the image cannot see near the speaker's usual range.
@@ -376,6 +379,11 @@ class CloneAnalyser:
     continuity : float, optional
         Weight of the pull toward the previous frame's answer (:meth:`analyse`'s ``previous``), as
         ``anchor``'s (see :data:`DEFAULT_CONTINUITY`); default :data:`DEFAULT_CONTINUITY`.
+    supersample : bool
+        Read the clone's textures at each frame pixel under a box pixel and average them, as the
+        frame's pixels are averaged into the box (:mod:`.lipraster`'s ``supersample``, ``factor`` reads
+        along each side); False (default): once, at the box pixel's centre, from textures blurred to the
+        box's scale (:func:`.lipraster.prefilter`). See :data:`_BOX_PIXELS` for what it changes.
     """
 
     def __init__(self, model: SpeakerModel, appearance, *, width: int, height: int, mouth_width: float,
@@ -384,7 +392,7 @@ class CloneAnalyser:
                  compare: str = "colour", precondition: bool = True, open_mouth: bool = False,
                  walls: float = DEFAULT_WALLS, box_pixels: int | None = None, xatol: float = 1e-3,
                  fatol: float = 1e-7, shift: bool = False, anchor: float | None = None,
-                 rounds: int = DEFAULT_ROUNDS, continuity: float | None = None):
+                 rounds: int = DEFAULT_ROUNDS, continuity: float | None = None, supersample: bool = False):
         if raster is not None and raster not in RASTERS:
             raise ValueError(f"raster must be None or one of {', '.join(RASTERS)}, got {raster!r}")
         if compare not in COMPARES:
@@ -437,6 +445,8 @@ class CloneAnalyser:
         self.factor = max(1, int(round(_BOX[0] * mouth_width / (box_pixels or _BOX_PIXELS))))
         self.box_width = int(np.ceil(_BOX[0] * mouth_width / self.factor))
         self.box_height = max(4, int(np.ceil(_BOX[1] * mouth_width * self._rows / self.factor)))
+        # the textures read at each frame pixel under a box pixel, as the clone's renderer reads them
+        self.supersample = self.factor if supersample else 1
         uv = np.asarray(appearance.uv, dtype=np.float64)[self.mesh.points]
         if compare == "probability":
             textures = np.asarray(appearance.lip_textures, dtype=np.float32)
@@ -444,7 +454,8 @@ class CloneAnalyser:
             textures = np.asarray(appearance.textures, dtype=np.float32)
         S = textures.shape[1]
         corners = uv[self.mesh.outer]
-        texels = S * np.ptp(corners[:, 0]) / max(mouth_width / self.factor, 1e-9)  # texels per box pixel
+        # texels per texture read: per box pixel, or per frame pixel when supersampled
+        texels = S * np.ptp(corners[:, 0]) / max(mouth_width / self.factor * self.supersample, 1e-9)
         filtered = prefilter(textures, texels)
         # only the texels under the analysis mesh (and a margin): the part of the textures read
         s = filtered.shape[1]
@@ -454,8 +465,8 @@ class CloneAnalyser:
         part = np.ascontiguousarray(filtered[:, lo[1]:hi[1], lo[0]:hi[0]])
         uv = (at - lo) / (hi - lo)
         # colours: -1 where the mesh does not reach (the mouth's opening), a value no texel has
-        options = dict(width=self.box_width, height=self.box_height, background=0.0 if compare == "probability"
-                       else _UNCOVERED)
+        options = dict(width=self.box_width, height=self.box_height, supersample=self.supersample,
+                       background=0.0 if compare == "probability" else _UNCOVERED)
         if raster == "numpy":
             self.raster = NumpyLipRaster(self.mesh.triangles, uv, part, **options)
         elif raster == "gl":

@@ -19,6 +19,16 @@ Both take vertices in box pixels (x right, y down, pixel ``(i, j)`` covering ``[
 sampled at its centre ``(j + 0.5, i + 0.5)``), texture coordinates ``uv`` in ``[0, 1]`` (``u`` along
 a texture's columns, ``v`` along its rows, row 0 first) and return ``(height, width) float32``, with
 ``background`` where no triangle covers a pixel.
+
+With ``supersample=s`` a covered pixel's value is the mean of the texture read at ``s x s`` points
+spread evenly over the pixel (the centres of its ``s x s`` sub-pixels), each through the texture map of
+the triangle covering the pixel's centre; which pixels are covered does not change. The analysis
+compares the clone with the frame averaged down over blocks of ``s x s`` pixels
+(:class:`faceanim.speaker.analysis.CloneAnalyser`), the clone's renderer having read the texture at
+each of those pixels' centres: the same mean. A filter of the textures instead (:func:`prefilter`) is
+one isotropic blur for the whole mouth, while the texture map's stretch varies from triangle to
+triangle (on the speech clips by 1.3x between its axes on a median triangle, 1.9x on the 90th
+percentile). The texels read cost ``s x s`` times more; the triangles and pixels drawn, the same.
 """
 
 from __future__ import annotations
@@ -35,37 +45,45 @@ RASTERS = ("numpy", "gl")
 
 def prefilter_block(footprint: float) -> int:
     """``k``, the texels :func:`prefilter` averages into one along each side for a box pixel
-    ``footprint`` texels wide (1: not averaged). Its texel ``J`` is centred on the original's texel
-    coordinate ``(J + 0.5) k``: texture coordinates ``uv`` read it at ``uv S / k`` of its texels (not
-    ``uv (S // k)``, which would shift what is read by up to ``k / 2`` texels at the far side)."""
+    ``footprint`` texels wide (1: not averaged), about a third of the footprint. Its texel ``J`` is
+    centred on the original's texel coordinate ``(J + 0.5) k``: texture coordinates ``uv`` read it at
+    ``uv S / k`` of its texels (not ``uv (S // k)``, which would shift what is read by up to ``k / 2``
+    texels at the far side)."""
     if float(footprint) / np.sqrt(12.0) < 0.5:
         return 1
-    return max(1, int(round(float(footprint) / 1.5)))
+    return max(1, int(round(float(footprint) / 3.0)))
 
 
 def prefilter(textures, footprint: float) -> np.ndarray:
     """``textures (Q, S, S)`` (or ``(Q, S, S, C)``, C channels) as a box pixel sees them, ``footprint``
-    texels wide: blurred by a Gaussian of the same spread (``footprint / sqrt(12)`` texels), so that
-    reading the texture at a box pixel's centre gives about the pixel's mean, as averaging the frame's
-    pixels over the box does; then averaged over blocks of ``k`` texels (:func:`prefilter_block`,
-    ``round(footprint / 1.5)``), giving ``(Q, S // k, S // k[, C])`` float32, about 1.5 texels a box
-    pixel: small enough to mix and read quickly, fine enough to read bilinearly.
+    texels wide: read at a box pixel's centre, they give about the pixel's mean, as averaging the
+    frame's pixels over the box does. The frame's box pixel spreads a texel over ``footprint^2 / 12``
+    texels squared (a box's variance) plus the sixth of a texel squared of the renderer's own bilinear
+    reads; three blurs make up the same here: a Gaussian, then the average over blocks of ``k`` texels
+    (:func:`prefilter_block`, about ``footprint / 3``; ``(k^2 - 1) / 12``), then the bilinear read of
+    the result (``k^2 / 6``). The result is ``(Q, S // k, S // k[, C])`` float32, about 3 texels a box
+    pixel: small enough to mix and read quickly. (The Gaussian at the pixel's full spread, with blocks
+    of ``footprint / 1.5`` on top, as before, left the clone 1.5-2.3 times as spread as the frame: on
+    the clone's own frames of the speech clips the cost's minimum lay 0.22 of a parameter's spread from
+    the truth on a median draw, 0.17 now, ``benchmarks/results/clone_tracking.md``.)
 
-    >>> t = np.zeros((1, 8, 8), np.float32); t[0, 4, 4] = 1
-    >>> small = prefilter(t, 3.0)
+    >>> t = np.zeros((1, 12, 12), np.float32); t[0, 6, 6] = 1
+    >>> small = prefilter(t, 6.0)
     >>> small.shape, bool(abs(small.sum() * 4 - 1) < 1e-2)  # the mean kept (4 texels a block)
-    ((1, 4, 4), True)
+    ((1, 6, 6), True)
     >>> bool(np.array_equal(prefilter(t, 1.0), t))
     True
     """
     from scipy.ndimage import gaussian_filter
 
     t = np.asarray(textures, dtype=np.float32)
-    sigma = float(footprint) / np.sqrt(12.0)
-    if sigma < 0.5:  # under a texel: bilinear reading is the filter
+    footprint = float(footprint)
+    if footprint / np.sqrt(12.0) < 0.5:  # under a texel: bilinear reading is the filter
         return np.ascontiguousarray(t)
-    t = gaussian_filter(t, sigma=(0, sigma, sigma) + (0,) * (t.ndim - 3), mode="nearest")
     k = prefilter_block(footprint)
+    sigma = np.sqrt(max(footprint ** 2 / 12.0 + 1.0 / 6.0 - (k * k - 1) / 12.0 - k * k / 6.0, 0.0))
+    if sigma > 0:
+        t = gaussian_filter(t, sigma=(0, sigma, sigma) + (0,) * (t.ndim - 3), mode="nearest")
     if k > 1:
         Q, S, R = t.shape[:3]
         t = t[:, :S // k * k, :R // k * k].reshape(Q, S // k, k, R // k, k, *t.shape[3:]).mean(axis=(2, 4))
@@ -93,9 +111,11 @@ def _reaching(xy: np.ndarray, triangles: np.ndarray, width: int, height: int) ->
 
 
 class _Raster:
-    """What both implementations check and keep: the triangles, the UV, the textures, the box."""
+    """What both implementations check and keep: the triangles, the UV, the textures, the box and the
+    texture's samples along each side of a pixel."""
 
-    def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0):
+    def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0,
+                 supersample: int = 1):
         self.uv = as_array(uv, "uv", shape=("V", 2), frozen=True)
         self.triangles = as_index_array(triangles, "triangles", upper=len(self.uv), shape=("F", 3), frozen=True)
         t = np.asarray(textures, dtype=np.float32)
@@ -106,6 +126,9 @@ class _Raster:
         if int(width) <= 0 or int(height) <= 0:
             raise ValueError(f"box size must be positive, got {width}x{height}")
         self.width, self.height, self.background = int(width), int(height), float(background)
+        if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or supersample < 1:
+            raise ValueError(f"supersample must be a whole number from 1, got {supersample!r}")
+        self.supersample = int(supersample)
 
     def _check(self, xy, weights) -> tuple[np.ndarray, np.ndarray]:
         xy = np.asarray(xy, dtype=np.float64)
@@ -132,6 +155,9 @@ class NumpyLipRaster(_Raster):
         The box, pixels.
     background : float
         The value where no triangle lies.
+    supersample : int
+        The texture read at ``supersample x supersample`` points of each pixel and averaged (see the
+        module's docstring; 1: at its centre).
 
     >>> square = NumpyLipRaster([[0, 1, 2], [0, 2, 3]], [[0, 0], [1, 0], [1, 1], [0, 1]],
     ...                         np.ones((1, 4, 4), np.float32), width=8, height=8)
@@ -140,8 +166,10 @@ class NumpyLipRaster(_Raster):
     16.0
     """
 
-    def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0):
-        super().__init__(triangles, uv, textures, width=width, height=height, background=background)
+    def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0,
+                 supersample: int = 1):
+        super().__init__(triangles, uv, textures, width=width, height=height, background=background,
+                         supersample=supersample)
         Q, s, r = self.textures.shape[:3]
         self._flat = np.ascontiguousarray(self.textures.reshape(Q, -1))  # (Q, s*r*C): mixed by one product
         self._size = (s, r)
@@ -224,7 +252,17 @@ class NumpyLipRaster(_Raster):
             uv = np.stack([k[:, 0] * x + k[:, 1] * y + k[:, 2], k[:, 3] * x + k[:, 4] * y + k[:, 5]], axis=1)
             # the keys mixed first (reading is linear): one texture of C channels read, not Q of them
             mixed = (w @ self._flat).reshape(-1, C)
-            image[py * self.width + px] = self._bilinear(mixed, uv)
+            n = self.supersample
+            if n == 1:
+                image[py * self.width + px] = self._bilinear(mixed, uv)
+            else:  # the sub-pixels' centres through the same triangle's map: uv + k's linear part x offset
+                offsets = (np.arange(n) + 0.5) / n - 0.5
+                total = np.zeros((len(uv), C), np.float64)
+                for oy in offsets:
+                    for ox in offsets:
+                        moved = uv + np.stack([k[:, 0] * ox + k[:, 1] * oy, k[:, 3] * ox + k[:, 4] * oy], axis=1)
+                        total += self._bilinear(mixed, moved)
+                image[py * self.width + px] = total / (n * n)
         return image.reshape((self.height, self.width) + ((C,) if self.textures.ndim == 4 else ()))
 
     def _bilinear(self, texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -276,25 +314,41 @@ uniform sampler2DArray lips;
 uniform float weights[{count}];
 in vec2 texcoord;
 out vec4 result;
+vec4 mixed(vec2 at) {{
+    return {mix};
+}}
 void main() {{
-    result = {mix};
+    {body}
 }}
 """
+# With supersampling: the texture read at the sub-pixels' centres, through the triangle's map (its
+# derivatives across the pixel; the map is affine within a triangle, so they are exact).
+_GL_SUPERSAMPLE = """vec2 across = dFdx(texcoord), down = dFdy(texcoord);
+    vec4 total = vec4(0.0);
+    for (int i = 0; i < {n}; ++i)
+        for (int j = 0; j < {n}; ++j)
+            total += mixed(texcoord + ((j + 0.5) / {n}.0 - 0.5) * across + ((i + 0.5) / {n}.0 - 0.5) * down);
+    result = total / {square}.0;"""
 
 
-def _fragment_shader(count: int) -> str:
-    """The fragment shader mixing ``count`` layers of the texture array, the sum written out: llvmpipe
-    ran a loop over a uniform count at half the speed (0.38 against 0.18 ms for the clone's mouth)."""
-    mix = " + ".join(f"weights[{q}] * texture(lips, vec3(texcoord, {q}.0))" for q in range(count))
-    return _GL_FRAGMENT.format(count=count, mix=mix)
+def _fragment_shader(count: int, supersample: int = 1) -> str:
+    """The fragment shader mixing ``count`` layers of the texture array, the sum written out, read at
+    ``supersample x supersample`` points of the pixel: llvmpipe ran a loop over a uniform count at half
+    the speed (0.38 against 0.18 ms for the clone's mouth)."""
+    mix = " + ".join(f"weights[{q}] * texture(lips, vec3(at, {q}.0))" for q in range(count))
+    body = ("result = mixed(texcoord);" if supersample == 1
+            else _GL_SUPERSAMPLE.format(n=supersample, square=supersample * supersample))
+    return _GL_FRAGMENT.format(count=count, mix=mix, body=body)
 
 
 class GlLipRaster(_Raster):
     """The same image as :class:`NumpyLipRaster`, drawn by OpenGL into a float framebuffer (moderngl,
     EGL); a context manager (holds a GL context). At most 8 key postures."""
 
-    def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0):
-        super().__init__(triangles, uv, textures, width=width, height=height, background=background)
+    def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0,
+                 supersample: int = 1):
+        super().__init__(triangles, uv, textures, width=width, height=height, background=background,
+                         supersample=supersample)
         try:
             import moderngl
         except ImportError:
@@ -305,7 +359,7 @@ class GlLipRaster(_Raster):
         ctx = self._ctx
         self._fbo = ctx.framebuffer(color_attachments=[ctx.renderbuffer((self.width, self.height), 4, dtype="f4")])
         Q, s, r = self.textures.shape[:3]
-        self._program = ctx.program(vertex_shader=_GL_VERTEX, fragment_shader=_fragment_shader(Q))
+        self._program = ctx.program(vertex_shader=_GL_VERTEX, fragment_shader=_fragment_shader(Q, self.supersample))
         # four channels whatever the textures have: llvmpipe reads RGBA float textures faster than RGB
         padded = np.zeros((Q, s, r, 4), np.float32)
         padded[..., :self.channels] = self.textures.reshape(Q, s, r, self.channels)
