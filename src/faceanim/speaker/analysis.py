@@ -64,11 +64,12 @@ _BOX = (1.5, 0.85)  # the box around the mouth, in mouth widths: the lips and th
 # (benchmarks/clone_tracking.py (a)) the cost's minimum lies off the truth wherever the clone drawn at
 # the box's size misses the frame averaged down to it: 0.23 of a parameter's spread on a median draw
 # with the textures blurred too wide (lipraster.prefilter), 0.17 with the blur matched to a box
-# pixel's (the same day), 0.07 with ``supersample`` (the textures read at every frame pixel, as the
-# frame's are averaged), which costs half the speed (5.1 / 8.9 frames/s against 12.4 / 13.7 on the
-# speech clips, goal 10). At 96 the box itself went 0.35 / 0.17 / 0.11 / 0.14 -> 0.16 / 0.19 / 0.08 /
-# 0.06 on the first folds' draws, but speech_woman (mouth 74 pixels: the box at full size) ran at
-# 8.6-9.4 frames/s against 14-16; kept at 64.
+# pixel's (the same day), 0.09 with ``supersample`` (the textures read at every frame pixel, as the
+# frame's are averaged; tracked 0.08 against 0.16), which costs half the speed (5.8 / 8.8 frames/s
+# against 12.2 / 13.2 on the speech clips, goal 10). At 96 the box itself went 0.35 / 0.17 / 0.11 /
+# 0.14 -> 0.16 / 0.19 / 0.08 / 0.06 on the first folds' draws (one Gauss-Newton round, the old blur),
+# but speech_woman (mouth 74 pixels: the box at full size) ran at 8.6-9.4 frames/s against 14-16; kept
+# at 64.
 _BOX_PIXELS = 64
 # The prior on the articulatory parameters (unit variance over the build frames): ``prior x mean(a^2)``
 # is added to the difference, holding what the image cannot see near the speaker's usual range.
@@ -105,11 +106,15 @@ DEFAULT_ANCHOR = 1.0
 # Without a reading it only makes the answer lag (the clone's own frames tracked from the image alone:
 # worst parameter's error 0.35 -> 1.9 of its spread on speech_man), so ``speaker track`` gives both.
 DEFAULT_CONTINUITY = 1.0
-# The damped Gauss-Newton rounds before the simplex (:meth:`CloneAnalyser._shaped_simplex`). One: on the
-# clone's own frames more rounds came back closer from far starts (tests) but mixed on the speech clips'
-# draws (speech_man's first fold 0.35 / 0.17 of the spread at 1, 0.23 / 0.29 at 4; the woman's 0.11 /
-# 0.14 against 0.10 / 0.13).
-DEFAULT_ROUNDS = 1
+# The damped Gauss-Newton rounds before the simplex (:meth:`CloneAnalyser._shaped_simplex`). Chosen on
+# the clone's own frames at build postures (tuning: 4 segments of 20 build frames per fold, both clips,
+# 16 draws, tracked from the image alone as benchmarks/clone_tracking.py (a) does on the held-out frames):
+# worst parameter's RMS error over its spread, median (worst), 1 round: 0.227 (0.95); 3: 0.166 (0.92);
+# supersampled 1: 0.237 (0.69), 2: 0.115 (0.92), 3: 0.106 (0.77), 5: 0.112 (0.73), against a floor of
+# 0.084 (each frame from its truth, 600 evaluations). On real build frames, with the reading's and the
+# previous answer's pulls, the lip opening's and width's correlation with MediaPipe moved by under 0.01.
+# (One round was kept while the textures' blur was too wide: then more rounds were mixed.)
+DEFAULT_ROUNDS = 3
 # The shaped simplex (CloneAnalyser._shaped_simplex): finite differences over this share of a first step;
 # the Gauss-Newton step's damping (Levenberg-Marquardt, on the Hessian's diagonal) and its longest move in
 # first steps; the cost each edge of the simplex raises, as a share of the start's.
