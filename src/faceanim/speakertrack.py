@@ -131,6 +131,8 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     check_outputs({"-o": (output, ".csv"), "--fap": (fap, ".fap"), "--overlay": (overlay, ".mp4"),
                    "--motion-out": (motion_out, ".csv")},
                   inputs={"VIDEO": video, "--model": model, "--neutral": neutral})
+    if not isinstance(supersample, (bool, np.bool_)):
+        raise InputError(f"supersample must be True or False, got {supersample!r}")
     if isinstance(max_evals, bool) or not isinstance(max_evals, (int, np.integer)) or not 1 <= max_evals <= 100000:
         raise InputError(f"--max-evals {max_evals}: give a whole number of evaluations, at most 100000")
     if field is not None and field not in FIELDS:
@@ -190,7 +192,7 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     mouth_width = float(np.ptp(xy[:, 0]))
     with CloneAnalyser(speaker, appearance, width=capture.width, height=height, mouth_width=mouth_width,
                        max_evals=int(max_evals), rigid=rigid, raster=raster, field=field, camera=camera,
-                       supersample=bool(supersample)) as analyser:
+                       supersample=supersample) as analyser:
         outside = [t for t in np.flatnonzero(usable)
                    if not analyser.box_inside(analyser.box_origin(start[t], poses[t]))]
         if outside:

@@ -65,8 +65,8 @@ _BOX = (1.5, 0.85)  # the box around the mouth, in mouth widths: the lips and th
 # the box's size misses the frame averaged down to it: 0.23 of a parameter's spread on a median draw
 # with the textures blurred too wide (lipraster.prefilter), 0.17 with the blur matched to a box
 # pixel's (the same day), 0.09 with ``supersample`` (the textures read at every frame pixel, as the
-# frame's are averaged; tracked 0.08 against 0.16), which costs half the speed (5.8 / 8.8 frames/s
-# against 12.2 / 13.2 on the speech clips, goal 10). At 96 the box itself went 0.35 / 0.17 / 0.11 /
+# frame's are averaged; tracked 0.08 against 0.16), which costs half the speed (5.3 / 8.3 frames/s
+# against 11.4 / 11.6 on the speech clips, goal 10). At 96 the box itself went 0.35 / 0.17 / 0.11 /
 # 0.14 -> 0.16 / 0.19 / 0.08 / 0.06 on the first folds' draws (one Gauss-Newton round, the old blur),
 # but speech_woman (mouth 74 pixels: the box at full size) ran at 8.6-9.4 frames/s against 14-16; kept
 # at 64.
@@ -113,7 +113,9 @@ DEFAULT_CONTINUITY = 1.0
 # supersampled 1: 0.237 (0.69), 2: 0.115 (0.92), 3: 0.106 (0.77), 5: 0.112 (0.73), against a floor of
 # 0.084 (each frame from its truth, 600 evaluations). On real build frames, with the reading's and the
 # previous answer's pulls, the lip opening's and width's correlation with MediaPipe moved by under 0.01.
-# (One round was kept while the textures' blur was too wide: then more rounds were mixed.)
+# (One round was kept while the textures' blur was too wide: then more rounds were mixed.) More than one
+# round also lets each round retry a step that does not lower the cost (_LM_TRIES, each damped 4x
+# more); the figures above are of that pairing, which is what the default runs.
 DEFAULT_ROUNDS = 3
 # The shaped simplex (CloneAnalyser._shaped_simplex): finite differences over this share of a first step;
 # the Gauss-Newton step's damping (Levenberg-Marquardt, on the Hessian's diagonal) and its longest move in
@@ -387,8 +389,10 @@ class CloneAnalyser:
     supersample : bool
         Read the clone's textures at each frame pixel under a box pixel and average them, as the
         frame's pixels are averaged into the box (:mod:`.lipraster`'s ``supersample``, ``factor`` reads
-        along each side); False (default): once, at the box pixel's centre, from textures blurred to the
-        box's scale (:func:`.lipraster.prefilter`). See :data:`_BOX_PIXELS` for what it changes.
+        along each side), from textures blurred to a frame pixel's scale where they are finer than it
+        (:func:`.lipraster.prefilter`: over 1.73 texels a pixel; a camera's pixel integrates its area);
+        False (default): once, at the box pixel's centre, from textures blurred to the box's scale. See
+        :data:`_BOX_PIXELS` for what it changes.
     """
 
     def __init__(self, model: SpeakerModel, appearance, *, width: int, height: int, mouth_width: float,
@@ -423,6 +427,8 @@ class CloneAnalyser:
         self.continuity = DEFAULT_CONTINUITY if continuity is None else float(continuity)
         if not np.isfinite(self.continuity) or self.continuity < 0:
             raise ValueError(f"continuity must be a finite weight >= 0, got {continuity!r}")
+        if not isinstance(supersample, (bool, np.bool_)):
+            raise ValueError(f"supersample must be True or False, got {supersample!r}")
         if isinstance(rounds, bool) or not isinstance(rounds, (int, np.integer)) or rounds < 1:
             raise ValueError(f"rounds must be a whole number from 1, got {rounds!r}")
         self.rounds = int(rounds)
@@ -465,8 +471,10 @@ class CloneAnalyser:
         # only the texels under the analysis mesh (and a margin): the part of the textures read
         s = filtered.shape[1]
         at = uv * S / prefilter_block(texels)  # in the filtered texture's texels (its texel J spans k of S's)
-        lo = np.maximum(np.floor(at.min(axis=0)) - 2, 0).astype(int)
-        hi = np.minimum(np.ceil(at.max(axis=0)) + 2, s).astype(int)
+        # the margin: a bilinear read's reach, and a supersampled read's up to half a box pixel more
+        margin = 2 + int(np.ceil(0.5 * texels * self.supersample / prefilter_block(texels)))
+        lo = np.maximum(np.floor(at.min(axis=0)) - margin, 0).astype(int)
+        hi = np.minimum(np.ceil(at.max(axis=0)) + margin, s).astype(int)
         part = np.ascontiguousarray(filtered[:, lo[1]:hi[1], lo[0]:hi[0]])
         uv = (at - lo) / (hi - lo)
         # colours: -1 where the mesh does not reach (the mouth's opening), a value no texel has

@@ -12,8 +12,8 @@ lip probabilities). Two implementations draw exactly that:
 * :class:`GlLipRaster` (the tracker's default where a context can be made): moderngl on EGL (Mesa's
   software rasteriser on a CPU, the GPU where there is one), one float framebuffer, the textures in
   one float texture array mixed in the fragment shader; triangles beside the box are not drawn. It
-  measured faster on the speech clips (``benchmarks/clone_tracking.py``: 15.0-16.8 against 5.8-6.5
-  frames/s for the colour comparison on a 2-core machine at a load of about 3).
+  measured faster on the speech clips (``benchmarks/clone_tracking.py``: 11.4-11.6 against 7.4-7.6
+  frames/s for the colour comparison on a 2-core machine at a load of about 1).
 
 Both take vertices in box pixels (x right, y down, pixel ``(i, j)`` covering ``[j, j+1) x [i, i+1)``,
 sampled at its centre ``(j + 0.5, i + 0.5)``), texture coordinates ``uv`` in ``[0, 1]`` (``u`` along
@@ -25,10 +25,12 @@ spread evenly over the pixel (the centres of its ``s x s`` sub-pixels), each thr
 the triangle covering the pixel's centre; which pixels are covered does not change. The analysis
 compares the clone with the frame averaged down over blocks of ``s x s`` pixels
 (:class:`faceanim.speaker.analysis.CloneAnalyser`), the clone's renderer having read the texture at
-each of those pixels' centres: the same mean. A filter of the textures instead (:func:`prefilter`) is
-one isotropic blur for the whole mouth, while the texture map's stretch varies from triangle to
-triangle (on the speech clips by 1.3x between its axes on a median triangle, 1.9x on the 90th
-percentile). The texels read cost ``s x s`` times more; the triangles and pixels drawn, the same.
+each of those pixels' centres: the same mean (where the textures are no finer than a frame pixel; finer,
+the analyser blurs them to a pixel's scale, as a camera's pixel integrates its area). A filter of the
+textures instead (:func:`prefilter`) is one isotropic blur for the whole mouth, while the texture map's
+stretch varies from triangle to triangle (on the speech clips by 1.3x between its axes on a median
+triangle, 1.9x on the 90th percentile). The texels read cost ``s x s`` times more; the triangles and
+pixels drawn, the same.
 """
 
 from __future__ import annotations
@@ -64,7 +66,7 @@ def prefilter(textures, footprint: float) -> np.ndarray:
     the result (``k^2 / 6``). The result is ``(Q, S // k, S // k[, C])`` float32, about 3 texels a box
     pixel: small enough to mix and read quickly. (The Gaussian at the pixel's full spread, with blocks
     of ``footprint / 1.5`` on top, as before, left the clone 1.5-2.3 times as spread as the frame: on
-    the clone's own frames of the speech clips the cost's minimum lay 0.22 of a parameter's spread from
+    the clone's own frames of the speech clips the cost's minimum lay 0.23 of a parameter's spread from
     the truth on a median draw, 0.17 now, ``benchmarks/results/clone_tracking.md``.)
 
     >>> t = np.zeros((1, 12, 12), np.float32); t[0, 6, 6] = 1
@@ -332,9 +334,9 @@ _GL_SUPERSAMPLE = """vec2 across = dFdx(texcoord), down = dFdy(texcoord);
 
 
 def _fragment_shader(count: int, supersample: int = 1) -> str:
-    """The fragment shader mixing ``count`` layers of the texture array, the sum written out, read at
-    ``supersample x supersample`` points of the pixel: llvmpipe ran a loop over a uniform count at half
-    the speed (0.38 against 0.18 ms for the clone's mouth)."""
+    """The fragment shader mixing ``count`` layers of the texture array, the keys' sum written out (a
+    loop over a uniform count ran at half the speed on llvmpipe: 0.38 against 0.18 ms for the clone's
+    mouth); read at ``supersample x supersample`` points of the pixel."""
     mix = " + ".join(f"weights[{q}] * texture(lips, vec3(at, {q}.0))" for q in range(count))
     body = ("result = mixed(texcoord);" if supersample == 1
             else _GL_SUPERSAMPLE.format(n=supersample, square=supersample * supersample))
