@@ -111,3 +111,55 @@ def test_scores_that_miss_a_raise_the_landmarks_show_do_not_hold_the_brows_back(
     drive.apply(moved, 0)
     assert (np.abs(drive.heights[40:]) < 0.3).all()  # the scores say less than the landmarks show
     np.testing.assert_allclose(moved[40:, points, 1], before[40:, points, 1])
+
+
+BLINKING = NAMES + ("eyeBlinkLeft", "eyeBlinkRight")
+
+
+def blink_drive(frames=80, neutral_blink=False, **on):
+    """A drive over scores with the eyes' blink scores too (at rest 0.1), the named ones on from frame 20."""
+    scores = np.full((frames, len(BLINKING)), 0.1)
+    for name, value in on.items():
+        scores[20:, BLINKING.index(name)] = value
+    if neutral_blink:  # a blink among the neutral frames
+        scores[3:6, BLINKING.index("eyeBlinkLeft")] = 0.95
+    return BrowDrive.of_scores(scores, BLINKING, np.arange(frames) / 25.0, 3.0, np.arange(10))
+
+
+def test_where_no_brow_score_speaks_the_movement_goes_as_far_as_the_eye_on_its_side_shuts():
+    """The tracker's brow landmarks move with the lids in a blink the scores say nothing of: with the
+    left eye shut (eyeBlinkLeft 1) the left brow's tracked rise and dip are taken away, the right
+    brow's (its eye open) stay; half shut, half stays; a blink among the neutral frames does not move
+    the eyes' rest."""
+    for neutral_blink in (False, True):
+        for shut, kept in ((1.0, 0.0), (0.55, 0.5)):
+            drive = blink_drive(neutral_blink=neutral_blink, eyeBlinkLeft=shut)
+            points = np.asarray(drive.points)
+            moved = np.zeros((80, 478, 3))
+            moved[60:, points, 1] = -0.1
+            moved[60:, points[[0, 10]], 1] = 0.05  # one rising point on each side
+            drive.apply(moved, 0)
+            np.testing.assert_allclose(moved[-1, points[1:10], 1], -0.1 * kept, atol=2e-3)
+            np.testing.assert_allclose(moved[-1, points[0], 1], 0.05 * kept, atol=2e-3)
+            np.testing.assert_allclose(moved[-1, points[11:20], 1], -0.1, atol=1e-12)
+            np.testing.assert_allclose(moved[-1, points[10], 1], 0.05, atol=1e-12)
+
+
+def test_where_a_brow_score_speaks_a_shut_eye_changes_nothing():
+    """A frown or a raise with the eye shut: browDownLeft (or browInnerUp) on, each brow point the score
+    speaks for goes as the scores and its landmarks say, as without the blink scores (browInnerUp says
+    nothing of the brows' outer ends: those are damped as in a blink)."""
+    for on in ({"browDownLeft": 1.0}, {"browInnerUp": 1.0}):
+        with_blink = blink_drive(eyeBlinkLeft=1.0, **on)
+        without = drive_of(scores_over(80, **on))
+        points = np.asarray(with_blink.points)
+        results = []
+        for drive in (with_blink, without):
+            moved = np.zeros((80, 478, 3))
+            moved[60:, points, 1] = -0.1 if "browDownLeft" in on else 0.1
+            drive.apply(moved, 0)
+            results.append(moved[-1, points[:10], 1])
+        speaking = np.abs(without.heights[-1, :10]) > 0.01
+        assert speaking.sum() >= 8
+        np.testing.assert_allclose(results[0][speaking], results[1][speaking], atol=1e-12)
+        assert np.abs(results[0][speaking]).min() > 0.05

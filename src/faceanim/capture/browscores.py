@@ -19,11 +19,17 @@ fall), since the scores can miss what the landmarks see (on one ICT identity of 
 brow scores peak at 0.05 in a full raise the landmarks show as 0.6 cm; held to the scores, the raise was
 lost). So a point tracked ``rise`` with the scores' ``height > 0`` ends at
 ``max(rise, min(height, rise / TRACKED_SHARE))`` (for ``height < 0``, the same with max and min
-swapped); a tracked dip the scores call a raise (a painted face's blink) stays as tracked. Only the
-brow points' vertical movement is changed; their sideways and depth movement stay as tracked, and so
-does every other point. A frame without scores (a gap the capture filled) keeps its tracked heights.
-The constants were chosen on one ICT identity pair (seed 3) and reported on others
-(`benchmarks/brow_scores.py`).
+swapped); a tracked dip the scores call a raise (a painted face's blink) stays as tracked. Where no
+brow score speaks (each under :data:`_SILENT` once calibrated), the tracked movement is kept only as
+far as the same side's ``eyeBlink`` score, calibrated as the brows' are (against the neutral frames'
+raw median, which a blink among them does not move), leaves the eye open: ``movement x (1 - shut)``.
+The tracker's brow landmarks move with the lids: on the ICT renders they rise 0.02-0.05 cm through a
+blink that moves no brow, and the scores say nothing there. With the eye open, a movement no score
+calls for stays as tracked (a raise the scores miss). Only the brow points' vertical movement is
+changed; their sideways and depth movement stay as tracked, and so does every other point. A frame
+without scores (a gap the capture filled) keeps its tracked heights. The constants were chosen on one
+ICT identity pair (seed 3) and reported on others (`benchmarks/brow_scores.py`); the damping by the
+eyes' shutting has no constant of its own (``_SILENT`` only tells a silent score from a speaking one).
 """
 
 from __future__ import annotations
@@ -44,6 +50,8 @@ _FILTER = OneEuro()
 BROWS = {"Left": ((336, 296, 334, 293, 300), (285, 295, 282, 283, 276)),
          "Right": ((107, 66, 105, 63, 70), (55, 65, 52, 53, 46))}
 _SCORES = ("browInnerUp", "browOuterUpLeft", "browOuterUpRight", "browDownLeft", "browDownRight")
+_BLINKS = ("eyeBlinkLeft", "eyeBlinkRight")  # optional: without them the eyes count as open
+_SILENT = 0.01  # a calibrated score under this (1% of full) says nothing: the filtered scores hover there
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,16 +65,24 @@ class BrowDrive:
         the frame has no scores.
     points : (20,) int64
         The brow landmarks, in :data:`BROWS` order (left upper, left lower, right upper, right lower).
+    shut : (T, 20) float64, optional
+        How far the eye on each point's side is shut (its calibrated ``eyeBlink`` score, 0 to 1) where
+        no brow score speaks for the point, 0 where one does, NaN where the frame has no scores; None:
+        the eyes count as open throughout.
     """
 
     heights: np.ndarray
     points: np.ndarray
+    shut: np.ndarray | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "heights", as_array(self.heights, "heights", shape=("T", 20), frozen=True,
                                                      finite=False))
         object.__setattr__(self, "points", as_array(self.points, "points", shape=(20,), dtype=np.int64,
                                                     frozen=True))
+        if self.shut is not None:
+            object.__setattr__(self, "shut", as_array(self.shut, "shut", shape=self.heights.shape, frozen=True,
+                                                      finite=False))
 
     @classmethod
     def of_scores(cls, scores, names, times, ens0: float, neutral_frames, *,
@@ -79,7 +95,8 @@ class BrowDrive:
         names = list(names)
         if scores is None or any(n not in names for n in _SCORES):
             return None
-        raw = np.asarray(scores, dtype=np.float64)[:, [names.index(n) for n in _SCORES]]
+        blinks = _BLINKS if all(n in names for n in _BLINKS) else ()
+        raw = np.asarray(scores, dtype=np.float64)[:, [names.index(n) for n in _SCORES + blinks]]
         # the landmarks are filtered before they become motion; the scores that move the brows get the
         # same filter, so a brow does not jitter more than the rest of the face
         smooth = (raw if smoothing is None else
@@ -89,9 +106,17 @@ class BrowDrive:
         if not len(at_rest):
             return None
         s0 = np.percentile(at_rest, 5, axis=0) if neutral_frames is None else at_rest.max(axis=0)
+        if blinks and neutral_frames is not None:
+            # the eyes' rest: the raw scores' median, which a blink among the neutral frames does not move
+            # (filtered, the blink's tail spreads over most of a 10-frame neutral)
+            eyes = raw[neutral_frames, len(_SCORES):]
+            eyes = eyes[np.isfinite(eyes).all(axis=1)]
+            if len(eyes):
+                s0[len(_SCORES):] = np.median(eyes, axis=0)
         on = np.clip((smooth - s0) / np.maximum(1.0 - s0, 1e-3), 0.0, 1.0)
         inner, outer, down = on[:, 0], {"Left": on[:, 1], "Right": on[:, 2]}, {"Left": on[:, 3], "Right": on[:, 4]}
-        columns, points = [], []
+        shut = {"Left": on[:, 5], "Right": on[:, 6]} if blinks else None
+        columns, points, shut_columns = [], [], []
         for side, contours in BROWS.items():
             for contour in contours:
                 for k, point in enumerate(contour):
@@ -99,17 +124,24 @@ class BrowDrive:
                     raise_ = (1 - along) * inner + along * outer[side]
                     columns.append(ens0 * (RAISE * raise_ - LOWER * down[side]))
                     points.append(point)
-        return cls(np.stack(columns, axis=1), np.array(points))
+                    if shut is not None:
+                        silent = (raise_ < _SILENT) & (down[side] < _SILENT)
+                        shut_columns.append(np.where(silent, shut[side], 0.0))
+        return cls(np.stack(columns, axis=1), np.array(points),
+                   np.stack(shut_columns, axis=1) if shut is not None else None)
 
     def apply(self, displacements, start: int) -> np.ndarray:
         """``displacements (t, L, 3)`` of frames ``start .. start + t`` (head frame, cm), changed in
         place: each brow point's height is the scores', as far as its tracked height agrees, and never
-        short of its tracked height (see the module); returned."""
+        short of its tracked height; where no score speaks, the tracked height less what the eye's
+        shutting explains (see the module); returned."""
         heights = self.heights[start:start + len(displacements)]
         column = displacements[:, self.points, 1]
+        if self.shut is not None:  # where no score speaks, what the lids' closing explains is taken away
+            column = column * (1.0 - np.nan_to_num(self.shut[start:start + len(displacements)], nan=0.0))
         seen = column / TRACKED_SHARE
         agreed = np.where(heights > 0, np.maximum(column, np.minimum(heights, seen)),
                           np.minimum(column, np.maximum(heights, seen)))
         have = np.isfinite(heights) & np.isfinite(column)
-        displacements[:, self.points, 1] = np.where(have, agreed, column)
+        displacements[:, self.points, 1] = np.where(have, agreed, displacements[:, self.points, 1])
         return displacements
