@@ -163,3 +163,17 @@ def test_where_a_brow_score_speaks_a_shut_eye_changes_nothing():
         assert speaking.sum() >= 8
         np.testing.assert_allclose(results[0][speaking], results[1][speaking], atol=1e-12)
         assert np.abs(results[0][speaking]).min() > 0.05
+
+
+def test_a_frame_without_scores_keeps_its_tracked_heights_with_the_blink_scores_too():
+    """A gap the capture filled (no scores, blink scores included) is left as tracked, the eye shut or not."""
+    scores = np.full((80, len(BLINKING)), 0.1)
+    scores[20:, BLINKING.index("eyeBlinkLeft")] = 1.0
+    scores[70] = np.nan
+    drive = BrowDrive.of_scores(scores, BLINKING, np.arange(80) / 25.0, 3.0, np.arange(10))
+    points = np.asarray(drive.points)
+    moved = np.zeros((80, 478, 3))
+    moved[60:, points, 1] = 0.05
+    drive.apply(moved, 0)
+    np.testing.assert_array_equal(moved[70, points, 1], 0.05)
+    assert np.abs(moved[75, points[:10], 1]).max() < 5e-3  # around the gap, the shut eye's damping
