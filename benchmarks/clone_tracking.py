@@ -39,10 +39,10 @@ build frames (``DEFAULT_WALLS``).
     average when the run began is given (2 cores, shared: a load above 2 slows every figure).
     Goal >= 10 frames/s on 2 cores.
 
-(a), (b) and the GL speed are given for two analyses: the default, which reads the clone's textures
-once per box pixel (from textures blurred to the box's scale, :func:`faceanim.speaker.lipraster.prefilter`),
-and the supersampled one (``speaker track --supersample``), which reads them at every frame pixel under
-a box pixel and averages them as the frame's pixels are averaged.
+(a), (b) and the GL speed are given for two analyses: the default, which compares the frame's middle
+pixel under each box pixel with the clone's textures read at its centre, and the supersampled one
+(``speaker track --supersample``), which compares the mean of every frame pixel under a box pixel with
+the mean of the textures read at each of their centres.
 
 Also draws ``benchmarks/results/clone_tracking_<clip>.png``: three hard scored frames of each clip (the
 widest open, the narrowest (rounded), the widest spread), cropped about the mouth, with the tracked
@@ -241,12 +241,12 @@ def main() -> None:
                                   "(widest open, narrowest, widest)")
                 names = model.parameter_names
 
-    def summary(values, worst) -> str:
-        return f"{np.median(values):.2f} (worst {worst(values):.2f})"
+    def summary(values, worst, digits) -> str:
+        return f"{np.median(values):.{digits}f} (worst {worst(values):.2f})"
 
-    def row(measure, draws, at, worst, goal="") -> str:
-        return (f"| {measure} | " + " | ".join(summary([d[at] for d in draws[name]], worst) for name, _ in ANALYSES)
-                + f" | {goal} |")
+    def row(measure, draws, at, worst, goal="") -> str:  # against a goal, the median to 3 places
+        return (f"| {measure} | " + " | ".join(summary([d[at] for d in draws[name]], worst, 3 if goal else 2)
+                                               for name, _ in ANALYSES) + f" | {goal} |")
 
     count = len(draws_a["default"])
     lines = [
@@ -255,11 +255,11 @@ def main() -> None:
         "each speech clip (the first 70%, or the last), scored on the other 30% cut into 2 segments "
         f"({count} draws). Comparison: colour on the synthesis mesh around the mouth, the simplex shaped by "
         "the cost (`speaker/analysis.py`). Parameters: " + ", ".join(names) + ". Two analyses: *default*, the "
-        "clone's textures read once per box pixel from textures blurred to the box's scale; *supersampled* "
-        "(`speaker track --supersample`), read at every frame pixel under a box pixel and averaged as the "
-        "frame's pixels are.", "",
+        "frame's middle pixel under each box pixel against the clone's textures read at its centre; "
+        "*supersampled* (`speaker track --supersample`), the mean of every frame pixel under a box pixel "
+        "against the mean of the textures read at each of their centres.", "",
         f"## Summary (median over the {count} draws, worst in brackets)", "",
-        "| measure | " + " | ".join(name for name, _ in ANALYSES) + " | goal |", "|---|---|---|---|",
+        "| measure | " + " | ".join(name for name, _ in ANALYSES) + " | goal |", "|---" * (len(ANALYSES) + 2) + "|",
         row("(a) synthetic, worst parameter's RMS error, in the model's standard deviations", draws_a, 0, max),
         row("(a) synthetic, worst parameter's RMS error / its spread on the segment", draws_a, 1, max, "<= 0.1"),
         row(f"(a) the same, each frame started at its truth with {FLOOR_EVALS} evaluations (where the cost's "

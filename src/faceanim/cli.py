@@ -197,8 +197,9 @@ def _parser() -> argparse.ArgumentParser:
                                                         "a correction of the tracker's pose)")
     p.add_argument("--field", choices=("top", "bottom"), help="interlaced footage: analyse one field's rows only")
     p.add_argument("--supersample", action="store_true",
-                   help="draw the clone as the frame is averaged into the comparison's box: its textures read at "
-                        "every frame pixel (closer to the truth on the clone's own frames, about half the speed)")
+                   help="compare every frame pixel under each of the comparison's box pixels with the clone read "
+                        "at each (default: the middle one; a little closer to the truth on the clone's own frames, "
+                        "at half the speed or less)")
     p.add_argument("--raster", choices=("gl", "numpy"),
                    help="the lip-probability renderer (default gl where it can run, else numpy; see "
                         "benchmarks/results/clone_tracking.md)")

@@ -107,9 +107,9 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     cap on evaluations per frame; ``field``: ``"top"`` or ``"bottom"`` analyses one field of
     interlaced footage (its rows only: the overlay has half the rows); ``raster``: ``"gl"``,
     ``"numpy"`` or None (GL where it can run, else numpy; :mod:`faceanim.speaker.lipraster`);
-    ``supersample``: the clone's textures read at every frame pixel of the box, as the frame is
-    averaged (:class:`~faceanim.speaker.analysis.CloneAnalyser`'s ``supersample``: closer on the
-    clone's own frames, about half the speed).
+    ``supersample``: every frame pixel under each of the comparison's box pixels compared with the
+    clone read at each, not the middle one alone (:class:`~faceanim.speaker.analysis.CloneAnalyser`'s
+    ``supersample``: a little closer on the clone's own frames, at half the speed or less).
 
     Raises
     ------

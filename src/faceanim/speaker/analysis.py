@@ -1,8 +1,11 @@
 """Analysis by synthesis with the speaker's clone: render its mouth, compare with the frame, move the
 articulatory parameters (the ICP platform's tracker, Elisei, Odisio and Bailly 2001).
 
-Per frame, a small box around the mouth (1.5 x 0.85 mouth widths, averaged down to about 64 pixels
-across) of the frame is compared with the clone drawn in the same box. Two comparisons:
+Per frame, a small box around the mouth (1.5 x 0.85 mouth widths, about 64 box pixels across, each
+``factor x factor`` frame pixels) of the frame is compared with the clone drawn in the same box. Under
+each box pixel the frame's middle pixel is compared (or, with ``supersample``, the mean of all of
+them), against the clone's textures read at those pixels' centres, as the clone's renderer reads them
+for those pixels (:mod:`.lipraster`). Two comparisons:
 
 * ``"colour"`` (the default): the clone's key textures (RGB) mixed with the appearance's blending
   weights and drawn on the synthesis mesh's own triangles around the mouth (:func:`mouth_mesh`: the
@@ -60,16 +63,18 @@ _INNER = (78, 191, 80, 81, 13, 311, 310, 415, 308, 318, 402, 14, 178, 88)
 _RING = 8
 _RING_AXES = (0.95, 0.7)  # in mouth widths: the ring lies beyond the box
 _BOX = (1.5, 0.85)  # the box around the mouth, in mouth widths: the lips and their surroundings, not the nostrils
-# The box's width in its own pixels (the frame is averaged down to it). On the clone's own frames
-# (benchmarks/clone_tracking.py (a)) the cost's minimum lies off the truth wherever the clone drawn at
-# the box's size misses the frame averaged down to it: 0.23 of a parameter's spread on a median draw
-# with the textures blurred too wide (lipraster.prefilter), 0.17 with the blur matched to a box
-# pixel's (the same day), 0.09 with ``supersample`` (the textures read at every frame pixel, as the
-# frame's are averaged; tracked 0.08 against 0.16), which costs half the speed (5.3 / 8.3 frames/s
-# against 11.4 / 11.6 on the speech clips, goal 10). At 96 the box itself went 0.35 / 0.17 / 0.11 /
-# 0.14 -> 0.16 / 0.19 / 0.08 / 0.06 on the first folds' draws (one Gauss-Newton round, the old blur),
-# but speech_woman (mouth 74 pixels: the box at full size) ran at 8.6-9.4 frames/s against 14-16; kept
-# at 64.
+# The box's width in its own pixels. On the clone's own frames (benchmarks/clone_tracking.py (a)) the
+# cost's minimum lies off the truth wherever the clone drawn in the box misses the frame's pixels
+# there: with the frame averaged over each box pixel and the textures blurred to a box pixel's scale
+# (one isotropic blur, where the texture map stretches differently from triangle to triangle), 0.17 of
+# a parameter's spread on a median draw (tracked: 0.16); with the frame's middle pixel under each box
+# pixel and the textures read at its centre (the default now, at the same speed: 12.9-13.8 frames/s on
+# the speech clips, goal 10), 0.08 (tracked: 0.103); with all of them averaged (``supersample``), 0.09
+# (tracked: 0.079) at 5.8 / 9.6 frames/s (benchmarks/results/clone_tracking.md, 2026-11-24; the three
+# side by side the same day). At 96 the box itself went 0.35 /
+# 0.17 / 0.11 / 0.14 -> 0.16 / 0.19 / 0.08 / 0.06 on the first folds' draws (one Gauss-Newton round,
+# the box-scale blur), but speech_woman (mouth 74 pixels: the box at full size) ran at 8.6-9.4
+# frames/s against 14-16; kept at 64.
 _BOX_PIXELS = 64
 # The prior on the articulatory parameters (unit variance over the build frames): ``prior x mean(a^2)``
 # is added to the difference, holding what the image cannot see near the speaker's usual range.
@@ -109,10 +114,13 @@ DEFAULT_CONTINUITY = 1.0
 # The damped Gauss-Newton rounds before the simplex (:meth:`CloneAnalyser._shaped_simplex`). Chosen on
 # the clone's own frames at build postures (tuning: 4 segments of 20 build frames per fold, both clips,
 # 16 draws, tracked from the image alone as benchmarks/clone_tracking.py (a) does on the held-out frames):
-# worst parameter's RMS error over its spread, median (worst), 1 round: 0.227 (0.95); 3: 0.166 (0.92);
-# supersampled 1: 0.237 (0.69), 2: 0.115 (0.92), 3: 0.106 (0.77), 5: 0.112 (0.73), against a floor of
-# 0.084 (each frame from its truth, 600 evaluations). On real build frames, with the reading's and the
-# previous answer's pulls, the lip opening's and width's correlation with MediaPipe moved by under 0.01.
+# worst parameter's RMS error over its spread, median (worst), with the frame's middle pixel under each
+# box pixel (the default since 2026-11-24), 1 round: 0.198 (1.02); 2: 0.099 (0.86); 3: 0.104 (0.88); 5:
+# 0.100 (1.31), against a floor of 0.093 (0.22) (each frame from its truth, 600 evaluations); with
+# every pixel (supersampled) 1: 0.237 (0.69), 2: 0.115 (0.92), 3: 0.106 (0.77), 5: 0.112 (0.73), floor
+# 0.084; with the box-scale blur (the default before) 1: 0.227 (0.95), 3: 0.166 (0.92). On real build
+# frames, with the reading's and the previous answer's pulls, the lip opening's and width's correlation
+# with MediaPipe moved by under 0.01.
 # (One round was kept while the textures' blur was too wide: then more rounds were mixed.) More than one
 # round also lets each round retry a step that does not lower the cost (_LM_TRIES, each damped 4x
 # more); the figures above are of that pairing, which is what the default runs.
@@ -386,13 +394,14 @@ class CloneAnalyser:
     continuity : float, optional
         Weight of the pull toward the previous frame's answer (:meth:`analyse`'s ``previous``), as
         ``anchor``'s (see :data:`DEFAULT_CONTINUITY`); default :data:`DEFAULT_CONTINUITY`.
-    supersample : bool
-        Read the clone's textures at each frame pixel under a box pixel and average them, as the
-        frame's pixels are averaged into the box (:mod:`.lipraster`'s ``supersample``, ``factor`` reads
-        along each side), from textures blurred to a frame pixel's scale where they are finer than it
-        (:func:`.lipraster.prefilter`: over 1.73 texels a pixel; a camera's pixel integrates its area);
-        False (default): once, at the box pixel's centre, from textures blurred to the box's scale. See
-        :data:`_BOX_PIXELS` for what it changes.
+    supersample : bool, optional
+        Compare the mean of every frame pixel under a box pixel with the mean of the clone's textures
+        read at each of their centres (``factor x factor`` reads); False: the middle frame pixel with
+        one read at its centre. The textures are blurred to a frame pixel's scale either way where they
+        are finer than it (:func:`.lipraster.prefilter`: over 1.73 texels a pixel; a camera's pixel
+        integrates its area). Default: False for colour (see :data:`_BOX_PIXELS`), True for lip
+        probability (its reduced mesh and smooth textures want every pixel: on the tests' synthetic
+        clone its worst parameter tracked 0.16 std off with the middle pixel alone, 0.04 with all).
     """
 
     def __init__(self, model: SpeakerModel, appearance, *, width: int, height: int, mouth_width: float,
@@ -401,7 +410,7 @@ class CloneAnalyser:
                  compare: str = "colour", precondition: bool = True, open_mouth: bool = False,
                  walls: float = DEFAULT_WALLS, box_pixels: int | None = None, xatol: float = 1e-3,
                  fatol: float = 1e-7, shift: bool = False, anchor: float | None = None,
-                 rounds: int = DEFAULT_ROUNDS, continuity: float | None = None, supersample: bool = False):
+                 rounds: int = DEFAULT_ROUNDS, continuity: float | None = None, supersample: bool | None = None):
         if raster is not None and raster not in RASTERS:
             raise ValueError(f"raster must be None or one of {', '.join(RASTERS)}, got {raster!r}")
         if compare not in COMPARES:
@@ -427,6 +436,8 @@ class CloneAnalyser:
         self.continuity = DEFAULT_CONTINUITY if continuity is None else float(continuity)
         if not np.isfinite(self.continuity) or self.continuity < 0:
             raise ValueError(f"continuity must be a finite weight >= 0, got {continuity!r}")
+        if supersample is None:
+            supersample = compare == "probability"
         if not isinstance(supersample, (bool, np.bool_)):
             raise ValueError(f"supersample must be True or False, got {supersample!r}")
         if isinstance(rounds, bool) or not isinstance(rounds, (int, np.integer)) or rounds < 1:
@@ -456,8 +467,12 @@ class CloneAnalyser:
         self.factor = max(1, int(round(_BOX[0] * mouth_width / (box_pixels or _BOX_PIXELS))))
         self.box_width = int(np.ceil(_BOX[0] * mouth_width / self.factor))
         self.box_height = max(4, int(np.ceil(_BOX[1] * mouth_width * self._rows / self.factor)))
-        # the textures read at each frame pixel under a box pixel, as the clone's renderer reads them
-        self.supersample = self.factor if supersample else 1
+        # the frame pixels compared under each box pixel, (x, y) within its factor x factor: the middle
+        # one, or all of them; the clone's textures are read at the same pixels' centres
+        f = self.factor
+        along = np.arange(f) if supersample else np.array([f // 2])
+        self.supersample = len(along)
+        self._picks = np.stack(np.meshgrid(along, along), axis=-1).reshape(-1, 2)
         uv = np.asarray(appearance.uv, dtype=np.float64)[self.mesh.points]
         if compare == "probability":
             textures = np.asarray(appearance.lip_textures, dtype=np.float32)
@@ -465,20 +480,19 @@ class CloneAnalyser:
             textures = np.asarray(appearance.textures, dtype=np.float32)
         S = textures.shape[1]
         corners = uv[self.mesh.outer]
-        # texels per texture read: per box pixel, or per frame pixel when supersampled
-        texels = S * np.ptp(corners[:, 0]) / max(mouth_width / self.factor * self.supersample, 1e-9)
+        texels = S * np.ptp(corners[:, 0]) / max(mouth_width, 1e-9)  # a frame pixel's footprint
         filtered = prefilter(textures, texels)
         # only the texels under the analysis mesh (and a margin): the part of the textures read
         s = filtered.shape[1]
         at = uv * S / prefilter_block(texels)  # in the filtered texture's texels (its texel J spans k of S's)
-        # the margin: a bilinear read's reach, and a supersampled read's up to half a box pixel more
-        margin = 2 + int(np.ceil(0.5 * texels * self.supersample / prefilter_block(texels)))
+        # the margin: a bilinear read's reach, and up to half a box pixel more (reads off a pixel's centre)
+        margin = 2 + int(np.ceil(0.5 * texels * f / prefilter_block(texels)))
         lo = np.maximum(np.floor(at.min(axis=0)) - margin, 0).astype(int)
         hi = np.minimum(np.ceil(at.max(axis=0)) + margin, s).astype(int)
         part = np.ascontiguousarray(filtered[:, lo[1]:hi[1], lo[0]:hi[0]])
         uv = (at - lo) / (hi - lo)
         # colours: -1 where the mesh does not reach (the mouth's opening), a value no texel has
-        options = dict(width=self.box_width, height=self.box_height, supersample=self.supersample,
+        options = dict(width=self.box_width, height=self.box_height, offsets=(self._picks + 0.5) / f - 0.5,
                        background=0.0 if compare == "probability" else _UNCOVERED)
         if raster == "numpy":
             self.raster = NumpyLipRaster(self.mesh.triangles, uv, part, **options)
@@ -531,10 +545,14 @@ class CloneAnalyser:
         x0, y0 = origin
         f = self.factor
         crop = np.ascontiguousarray(image[y0:y0 + self.box_height * f, x0:x0 + self.box_width * f])
-        if self.compare == "colour":
-            return crop.reshape(self.box_height, f, self.box_width, f, 3).mean(axis=(1, 3), dtype=np.float32)
-        probability = np.asarray(self.colour.probability(crop), dtype=np.float32)
-        return probability.reshape(self.box_height, f, self.box_width, f).mean(axis=(1, 3))
+        if self.compare != "colour":
+            crop = np.asarray(self.colour.probability(crop), dtype=np.float32)[..., None]
+        blocks = crop.reshape(self.box_height, f, self.box_width, f, -1)
+        if len(self._picks) < f * f:  # (n, box_height, box_width, C): the picked pixels, averaged
+            mean = blocks[:, self._picks[:, 1], :, self._picks[:, 0]].mean(axis=0, dtype=np.float32)
+        else:
+            mean = blocks.mean(axis=(1, 3), dtype=np.float32)
+        return mean if self.compare == "colour" else mean[..., 0]
 
     def weights(self, parameters) -> np.ndarray:
         """``(Q,)`` the appearance's blending weights at ``parameters (K,)``: ``Appearance.weights`` of

@@ -20,17 +20,19 @@ sampled at its centre ``(j + 0.5, i + 0.5)``), texture coordinates ``uv`` in ``[
 a texture's columns, ``v`` along its rows, row 0 first) and return ``(height, width) float32``, with
 ``background`` where no triangle covers a pixel.
 
-With ``supersample=s`` a covered pixel's value is the mean of the texture read at ``s x s`` points
-spread evenly over the pixel (the centres of its ``s x s`` sub-pixels), each through the texture map of
-the triangle covering the pixel's centre; which pixels are covered does not change. The analysis
-compares the clone with the frame averaged down over blocks of ``s x s`` pixels
-(:class:`faceanim.speaker.analysis.CloneAnalyser`), the clone's renderer having read the texture at
-each of those pixels' centres: the same mean (where the textures are no finer than a frame pixel; finer,
-the analyser blurs them to a pixel's scale, as a camera's pixel integrates its area). A filter of the
-textures instead (:func:`prefilter`) is one isotropic blur for the whole mouth, while the texture map's
-stretch varies from triangle to triangle (on the speech clips by 1.3x between its axes on a median
-triangle, 1.9x on the 90th percentile). The texels read cost ``s x s`` times more; the triangles and
-pixels drawn, the same.
+With ``offsets`` (n points of a pixel, as shares of it from its centre) a covered pixel's value is
+the mean of the texture read at those points, each through the texture map of the triangle covering
+the pixel's centre; which pixels are covered does not change. The analysis's box pixel spans
+``factor x factor`` frame pixels (:class:`faceanim.speaker.analysis.CloneAnalyser`); it reads the
+clone at the centres of the frame pixels it compares under each box pixel (the middle one, or all of
+them), where the clone's renderer reads the texture for those pixels: the same values, with textures
+no finer than a frame pixel (finer, the analyser blurs them to a pixel's scale, as a camera's pixel
+integrates its area). A blur of the textures to the box pixel's scale instead (read once at its
+centre, against the frame averaged over the box pixel) is one isotropic blur for the whole mouth,
+while the texture map's stretch varies from triangle to triangle (on the speech clips by 1.3x between
+its axes on a median triangle, 1.9x on the 90th percentile): on the clone's own frames the cost's
+minimum lay about twice as far from the truth (``benchmarks/results/clone_tracking.md``). The texels
+read cost n times more; the triangles and pixels drawn, the same.
 """
 
 from __future__ import annotations
@@ -46,7 +48,7 @@ RASTERS = ("numpy", "gl")
 
 
 def prefilter_block(footprint: float) -> int:
-    """``k``, the texels :func:`prefilter` averages into one along each side for a box pixel
+    """``k``, the texels :func:`prefilter` averages into one along each side for a pixel
     ``footprint`` texels wide (1: not averaged), about a third of the footprint. Its texel ``J`` is
     centred on the original's texel coordinate ``(J + 0.5) k``: texture coordinates ``uv`` read it at
     ``uv S / k`` of its texels (not ``uv (S // k)``, which would shift what is read by up to ``k / 2``
@@ -57,17 +59,15 @@ def prefilter_block(footprint: float) -> int:
 
 
 def prefilter(textures, footprint: float) -> np.ndarray:
-    """``textures (Q, S, S)`` (or ``(Q, S, S, C)``, C channels) as a box pixel sees them, ``footprint``
-    texels wide: read at a box pixel's centre, they give about the pixel's mean, as averaging the
-    frame's pixels over the box does. The frame's box pixel spreads a texel over ``footprint^2 / 12``
-    texels squared (a box's variance) plus the sixth of a texel squared of the renderer's own bilinear
-    reads; three blurs make up the same here: a Gaussian, then the average over blocks of ``k`` texels
+    """``textures (Q, S, S)`` (or ``(Q, S, S, C)``, C channels) as a pixel ``footprint`` texels wide
+    sees them: read at the pixel's centre, they give about the pixel's mean (a camera's pixel
+    integrates its area). The pixel spreads a texel over ``footprint^2 / 12`` texels squared (a box's
+    variance) plus the sixth of a texel squared of the renderer's own bilinear reads; three blurs make
+    up the same here: a Gaussian, then the average over blocks of ``k`` texels
     (:func:`prefilter_block`, about ``footprint / 3``; ``(k^2 - 1) / 12``), then the bilinear read of
-    the result (``k^2 / 6``). The result is ``(Q, S // k, S // k[, C])`` float32, about 3 texels a box
-    pixel: small enough to mix and read quickly. (The Gaussian at the pixel's full spread, with blocks
-    of ``footprint / 1.5`` on top, as before, left the clone 1.5-2.3 times as spread as the frame: on
-    the clone's own frames of the speech clips the cost's minimum lay 0.23 of a parameter's spread from
-    the truth on a median draw, 0.17 now, ``benchmarks/results/clone_tracking.md``.)
+    the result (``k^2 / 6``). The result is ``(Q, S // k, S // k[, C])`` float32, about 3 texels a
+    pixel: small enough to mix and read quickly. Under 1.73 texels a pixel (a spread under half a
+    texel) the textures come back as they are: the bilinear read is the filter.
 
     >>> t = np.zeros((1, 12, 12), np.float32); t[0, 6, 6] = 1
     >>> small = prefilter(t, 6.0)
@@ -117,7 +117,7 @@ class _Raster:
     texture's samples along each side of a pixel."""
 
     def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0,
-                 supersample: int = 1):
+                 offsets=None):
         self.uv = as_array(uv, "uv", shape=("V", 2), frozen=True)
         self.triangles = as_index_array(triangles, "triangles", upper=len(self.uv), shape=("F", 3), frozen=True)
         t = np.asarray(textures, dtype=np.float32)
@@ -128,9 +128,12 @@ class _Raster:
         if int(width) <= 0 or int(height) <= 0:
             raise ValueError(f"box size must be positive, got {width}x{height}")
         self.width, self.height, self.background = int(width), int(height), float(background)
-        if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or supersample < 1:
-            raise ValueError(f"supersample must be a whole number from 1, got {supersample!r}")
-        self.supersample = int(supersample)
+        offsets = np.zeros((1, 2)) if offsets is None else np.asarray(offsets, dtype=np.float64)
+        if (offsets.ndim != 2 or offsets.shape[1] != 2 or not len(offsets) or not np.isfinite(offsets).all()
+                or np.abs(offsets).max() > 0.5):
+            raise ValueError("offsets must be (n, 2) shares of a pixel (x, y) within 0.5 of its centre, "
+                             f"got {offsets!r}")
+        self.offsets = tuple((float(x), float(y)) for x, y in offsets)
 
     def _check(self, xy, weights) -> tuple[np.ndarray, np.ndarray]:
         xy = np.asarray(xy, dtype=np.float64)
@@ -151,15 +154,15 @@ class NumpyLipRaster(_Raster):
     uv : (V, 2) float64
         Each vertex's texture coordinates in ``[0, 1]``.
     textures : (Q, s, s) or (Q, s, s, C) float32
-        The key postures' lip-probability textures, or their colours (C channels), filtered to the box's
-        scale (:func:`prefilter`).
+        The key postures' lip-probability textures, or their colours (C channels), no finer than the
+        reads' spacing (:func:`prefilter`).
     width, height : int
         The box, pixels.
     background : float
         The value where no triangle lies.
-    supersample : int
-        The texture read at ``supersample x supersample`` points of each pixel and averaged (see the
-        module's docstring; 1: at its centre).
+    offsets : (n, 2) float64, optional
+        The points of each pixel the texture is read at and averaged, ``(x, y)`` as shares of the pixel
+        from its centre (each within 0.5; see the module's docstring); default its centre.
 
     >>> square = NumpyLipRaster([[0, 1, 2], [0, 2, 3]], [[0, 0], [1, 0], [1, 1], [0, 1]],
     ...                         np.ones((1, 4, 4), np.float32), width=8, height=8)
@@ -169,9 +172,9 @@ class NumpyLipRaster(_Raster):
     """
 
     def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0,
-                 supersample: int = 1):
+                 offsets=None):
         super().__init__(triangles, uv, textures, width=width, height=height, background=background,
-                         supersample=supersample)
+                         offsets=offsets)
         Q, s, r = self.textures.shape[:3]
         self._flat = np.ascontiguousarray(self.textures.reshape(Q, -1))  # (Q, s*r*C): mixed by one product
         self._size = (s, r)
@@ -254,17 +257,14 @@ class NumpyLipRaster(_Raster):
             uv = np.stack([k[:, 0] * x + k[:, 1] * y + k[:, 2], k[:, 3] * x + k[:, 4] * y + k[:, 5]], axis=1)
             # the keys mixed first (reading is linear): one texture of C channels read, not Q of them
             mixed = (w @ self._flat).reshape(-1, C)
-            n = self.supersample
-            if n == 1:
+            if self.offsets == ((0.0, 0.0),):
                 image[py * self.width + px] = self._bilinear(mixed, uv)
-            else:  # the sub-pixels' centres through the same triangle's map: uv + k's linear part x offset
-                offsets = (np.arange(n) + 0.5) / n - 0.5
+            else:  # the read points through the same triangle's map: uv + k's linear part x offset
                 total = np.zeros((len(uv), C), np.float64)
-                for oy in offsets:
-                    for ox in offsets:
-                        moved = uv + np.stack([k[:, 0] * ox + k[:, 1] * oy, k[:, 3] * ox + k[:, 4] * oy], axis=1)
-                        total += self._bilinear(mixed, moved)
-                image[py * self.width + px] = total / (n * n)
+                for ox, oy in self.offsets:
+                    moved = uv + np.stack([k[:, 0] * ox + k[:, 1] * oy, k[:, 3] * ox + k[:, 4] * oy], axis=1)
+                    total += self._bilinear(mixed, moved)
+                image[py * self.width + px] = total / len(self.offsets)
         return image.reshape((self.height, self.width) + ((C,) if self.textures.ndim == 4 else ()))
 
     def _bilinear(self, texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -323,23 +323,24 @@ void main() {{
     {body}
 }}
 """
-# With supersampling: the texture read at the sub-pixels' centres, through the triangle's map (its
+# Reads off the pixel's centre: the texture read at each offset through the triangle's map (its
 # derivatives across the pixel; the map is affine within a triangle, so they are exact).
 _GL_SUPERSAMPLE = """vec2 across = dFdx(texcoord), down = dFdy(texcoord);
+    const vec2 offsets[{n}] = vec2[{n}]({offsets});
     vec4 total = vec4(0.0);
     for (int i = 0; i < {n}; ++i)
-        for (int j = 0; j < {n}; ++j)
-            total += mixed(texcoord + ((j + 0.5) / {n}.0 - 0.5) * across + ((i + 0.5) / {n}.0 - 0.5) * down);
-    result = total / {square}.0;"""
+        total += mixed(texcoord + offsets[i].x * across + offsets[i].y * down);
+    result = total / {n}.0;"""
 
 
-def _fragment_shader(count: int, supersample: int = 1) -> str:
+def _fragment_shader(count: int, offsets=((0.0, 0.0),)) -> str:
     """The fragment shader mixing ``count`` layers of the texture array, the keys' sum written out (a
     loop over a uniform count ran at half the speed on llvmpipe: 0.38 against 0.18 ms for the clone's
-    mouth); read at ``supersample x supersample`` points of the pixel."""
+    mouth); read at ``offsets`` (n points of the pixel, shares of it from its centre)."""
     mix = " + ".join(f"weights[{q}] * texture(lips, vec3(at, {q}.0))" for q in range(count))
-    body = ("result = mixed(texcoord);" if supersample == 1
-            else _GL_SUPERSAMPLE.format(n=supersample, square=supersample * supersample))
+    points = [(float(x), float(y)) for x, y in offsets]
+    body = ("result = mixed(texcoord);" if points == [(0.0, 0.0)] else _GL_SUPERSAMPLE.format(
+        n=len(points), offsets=", ".join(f"vec2({x!r}, {y!r})" for x, y in points)))
     return _GL_FRAGMENT.format(count=count, mix=mix, body=body)
 
 
@@ -348,9 +349,9 @@ class GlLipRaster(_Raster):
     EGL); a context manager (holds a GL context). At most 8 key postures."""
 
     def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0,
-                 supersample: int = 1):
+                 offsets=None):
         super().__init__(triangles, uv, textures, width=width, height=height, background=background,
-                         supersample=supersample)
+                         offsets=offsets)
         try:
             import moderngl
         except ImportError:
@@ -361,7 +362,7 @@ class GlLipRaster(_Raster):
         ctx = self._ctx
         self._fbo = ctx.framebuffer(color_attachments=[ctx.renderbuffer((self.width, self.height), 4, dtype="f4")])
         Q, s, r = self.textures.shape[:3]
-        self._program = ctx.program(vertex_shader=_GL_VERTEX, fragment_shader=_fragment_shader(Q, self.supersample))
+        self._program = ctx.program(vertex_shader=_GL_VERTEX, fragment_shader=_fragment_shader(Q, self.offsets))
         # four channels whatever the textures have: llvmpipe reads RGBA float textures faster than RGB
         padded = np.zeros((Q, s, r, 4), np.float32)
         padded[..., :self.channels] = self.textures.reshape(Q, s, r, self.channels)
