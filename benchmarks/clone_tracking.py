@@ -22,9 +22,8 @@ build frames (``DEFAULT_WALLS``).
     parameter over the segment, in the model's units (the parameters have unit variance over the
     build frames) and divided by the parameter's spread on the segment (its standard deviation
     there, smaller: 0.25-1); the worst parameter per draw. Goal <= 0.1 of the spread. Also the same
-    with each frame started at its own truth and 600 evaluations: where the cost's minimum lies (the
-    comparison's box, averaged down to about 64 pixels across, against the clone drawn at full size),
-    a floor that no path or cap reaches under.
+    with each frame started at its own truth and 600 evaluations: where the cost's minimum lies, a
+    floor that no path or cap reaches under.
 (b) **real**: ``track_speaker`` on the whole clip (the job ``faceanim speaker track``, GL where it
     runs: the head registered on the static points' landmarks, the answer pulled toward each frame's
     landmark-based reading with ``DEFAULT_ANCHOR`` and toward the previous frame's answer with
