@@ -1,4 +1,5 @@
-"""Peak memory of `encode`, `animate`, `aus` and `decode` against the video's length: 10 s to 10 minutes.
+"""Peak memory of `encode`, `animate`, `aus`, `decode` and `speaker track` against the video's length: 10 s to
+10 minutes.
 
     python3 benchmarks/memory_length.py [--lengths 10,60,300] [--baseline OTHER_CHECKOUT/src [--baseline-lengths 10,60]]
 
@@ -11,6 +12,9 @@ fresh process, its memory (with that of the processes it forks) sampled as it ru
 - ``faceanim animate VIDEO --target ICT -o x.glb``
 - ``faceanim aus VIDEO -o x.csv``
 - ``faceanim decode x.fap --target ICT -o y.glb``
+- ``faceanim speaker track VIDEO --model SPEAKER -o x.csv``: the clone's analysis by synthesis, with a
+  speaker model and textures made once from d6 itself (``speaker build``, ``speaker textures``; not
+  measured)
 - ``batch task``: what one Ray task of ``faceanim batch --do encode,aus,blendshapes,animate --target ICT`` runs for
   a video (:func:`faceanim.dataset.process_video`), in a process of its own (a Ray worker's own
   footprint, about 0.1 GB, comes on top)
@@ -40,7 +44,7 @@ DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 SOURCE = DATA / "videos" / "d6.mp4"
 TARGET = DATA / "ict_facekit" / "obj" / "generic_neutral_mesh.obj"
 GOAL_GB = 1.5
-JOBS = ("encode", "animate", "aus", "decode", "batch task")
+JOBS = ("encode", "animate", "aus", "decode", "speaker track", "batch task")
 
 
 def looped_video(seconds: int, folder: Path) -> Path:
@@ -67,6 +71,19 @@ def looped_video(seconds: int, folder: Path) -> Path:
         for packet in video.encode():
             out.mux(packet)
     partial.replace(path)
+    return path
+
+
+def speaker_model(folder: Path) -> Path:
+    """A speaker model with its textures made from d6 (``speaker build`` then ``speaker textures``); made
+    once."""
+    path = folder / "d6_speaker.npz"
+    if not path.exists():
+        partial = folder / "d6_speaker.partial.npz"
+        for command in (["speaker", "build", str(SOURCE), "-o", str(partial)],
+                        ["speaker", "textures", str(SOURCE), "--model", str(partial), "-o", str(partial)]):
+            subprocess.run([sys.executable, "-m", "faceanim.cli", *command], check=True, stdout=subprocess.DEVNULL)
+        partial.replace(path)
     return path
 
 
@@ -159,12 +176,16 @@ def main() -> None:
                     ("animate", ["animate", str(video), "--target", str(TARGET), "-o", str(glb)]),
                     ("aus", ["aus", str(video), "-o", str(work / f"{tag}_aus.csv")]),
                     ("decode", ["decode", str(fap), "--target", str(TARGET), "-o", str(decoded)]),
+                    ("speaker track", ["speaker", "track", str(video), "--model", str(work / "d6_speaker.npz"), "-o",
+                                       str(work / f"{tag}_speaker.csv")]),
                     ("batch task", ["-c", BATCH_TASK, str(video), str(work / f"{tag}_batch"), str(TARGET)]))
             for job, command in jobs:
                 if job not in chosen:
                     continue
                 if job == "batch task":
                     (work / f"{tag}_batch").mkdir(exist_ok=True)
+                if job == "speaker track":
+                    speaker_model(work)
                 largest, gigabytes, wall = peak(command, src)
                 rows.append((name, job, seconds, gigabytes, wall))
                 print(f"{name:<14} {job:<8} {seconds:>5} s  {gigabytes:6.2f} GB together "
