@@ -179,9 +179,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, metavar="OUT.mp4")
     p = speaker.add_parser("track", help="a video's parameters by analysis by synthesis with the clone",
                            description="Analyse VIDEO with the speaker's clone (a model with textures): per frame, the "
-                                       "clone's lip-probability image over the mouth is compared with the frame's, and "
-                                       "the articulatory parameters (with --rigid the head's motion too) move by the "
-                                       "simplex method from the previous frame's answer.")
+                                       "clone's colours drawn over the mouth are compared with the frame's, and the "
+                                       "articulatory parameters (with --rigid the head's motion too) move by damped "
+                                       "Gauss-Newton steps and the simplex method from the previous frame's answer, "
+                                       "pulled toward the frame's landmark-based reading.")
     p.add_argument("video", metavar="VIDEO")
     p.add_argument("--model", required=True, metavar="SPEAKER.npz", help="a speaker model with textures "
                                                                          "(faceanim speaker textures)")
@@ -199,7 +200,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--supersample", action="store_true",
                    help="compare every frame pixel under each of the comparison's box pixels with the clone read "
                         "at each (default: the middle one; a little closer to the truth on the clone's own frames, "
-                        "at half the speed or less)")
+                        "at 45-70%% of the speed)")
     p.add_argument("--raster", choices=("gl", "numpy"),
                    help="the lip-probability renderer (default gl where it can run, else numpy; see "
                         "benchmarks/results/clone_tracking.md)")

@@ -109,7 +109,7 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     ``"numpy"`` or None (GL where it can run, else numpy; :mod:`faceanim.speaker.lipraster`);
     ``supersample``: every frame pixel under each of the comparison's box pixels compared with the
     clone read at each, not the middle one alone (:class:`~faceanim.speaker.analysis.CloneAnalyser`'s
-    ``supersample``: a little closer on the clone's own frames, at half the speed or less).
+    ``supersample``: a little closer on the clone's own frames, at 45-70% of the speed).
 
     Raises
     ------

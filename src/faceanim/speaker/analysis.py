@@ -68,13 +68,13 @@ _BOX = (1.5, 0.85)  # the box around the mouth, in mouth widths: the lips and th
 # there: with the frame averaged over each box pixel and the textures blurred to a box pixel's scale
 # (one isotropic blur, where the texture map stretches differently from triangle to triangle), 0.17 of
 # a parameter's spread on a median draw (tracked: 0.16); with the frame's middle pixel under each box
-# pixel and the textures read at its centre (the default now, at the same speed: 12.9-13.8 frames/s on
-# the speech clips, goal 10), 0.08 (tracked: 0.103); with all of them averaged (``supersample``), 0.09
-# (tracked: 0.079) at 5.8 / 9.6 frames/s (benchmarks/results/clone_tracking.md, 2026-11-24; the three
-# side by side the same day). At 96 the box itself went 0.35 /
-# 0.17 / 0.11 / 0.14 -> 0.16 / 0.19 / 0.08 / 0.06 on the first folds' draws (one Gauss-Newton round,
-# the box-scale blur), but speech_woman (mouth 74 pixels: the box at full size) ran at 8.6-9.4
-# frames/s against 14-16; kept at 64.
+# pixel and the textures read at its centre through the triangle covering it (the default now, at the
+# same speed: 12.5-13.0 frames/s on the speech clips, goal 10), 0.06 (tracked: 0.063; read through the
+# triangle under the box pixel's centre instead, 0.08 and 0.103); with all of them averaged
+# (``supersample``), 0.09 (tracked: 0.079) at 6.0 / 9.5 frames/s (benchmarks/results/clone_tracking.md,
+# 2026-11-24). At 96 the box itself went 0.35 / 0.17 / 0.11 / 0.14 -> 0.16 / 0.19 / 0.08 / 0.06 on the
+# first folds' draws (one Gauss-Newton round, the box-scale blur), but speech_woman (mouth 74 pixels:
+# the box at full size) ran at 8.6-9.4 frames/s against 14-16; kept at 64.
 _BOX_PIXELS = 64
 # The prior on the articulatory parameters (unit variance over the build frames): ``prior x mean(a^2)``
 # is added to the difference, holding what the image cannot see near the speaker's usual range.
@@ -115,12 +115,13 @@ DEFAULT_CONTINUITY = 1.0
 # the clone's own frames at build postures (tuning: 4 segments of 20 build frames per fold, both clips,
 # 16 draws, tracked from the image alone as benchmarks/clone_tracking.py (a) does on the held-out frames):
 # worst parameter's RMS error over its spread, median (worst), with the frame's middle pixel under each
-# box pixel (the default since 2026-11-24), 1 round: 0.198 (1.02); 2: 0.099 (0.86); 3: 0.104 (0.88); 5:
-# 0.100 (1.31), against a floor of 0.093 (0.22) (each frame from its truth, 600 evaluations); with
-# every pixel (supersampled) 1: 0.237 (0.69), 2: 0.115 (0.92), 3: 0.106 (0.77), 5: 0.112 (0.73), floor
-# 0.084; with the box-scale blur (the default before) 1: 0.227 (0.95), 3: 0.166 (0.92). On real build
-# frames, with the reading's and the previous answer's pulls, the lip opening's and width's correlation
-# with MediaPipe moved by under 0.01.
+# box pixel read through the triangle under the box pixel's centre (a first cut of today's default,
+# 2026-11-24), 1 round: 0.198 (1.02); 2: 0.099 (0.86); 3: 0.104 (0.88); 5: 0.100 (1.31), against a floor
+# of 0.093 (0.22) (each frame from its truth, 600 evaluations); through the triangle covering the pixel
+# (the default), 3 rounds: 0.062 (0.24), floor 0.062 (0.13); with every pixel (supersampled) 1: 0.237
+# (0.69), 2: 0.115 (0.92), 3: 0.106 (0.77), 5: 0.112 (0.73), floor 0.084; with the box-scale blur (the
+# default before) 1: 0.227 (0.95), 3: 0.166 (0.92). On real build frames, with the reading's and the
+# previous answer's pulls, the lip opening's and width's correlation with MediaPipe moved by under 0.01.
 # (One round was kept while the textures' blur was too wide: then more rounds were mixed.) More than one
 # round also lets each round retry a step that does not lower the cost (_LM_TRIES, each damped 4x
 # more); the figures above are of that pairing, which is what the default runs.
@@ -401,7 +402,7 @@ class CloneAnalyser:
         are finer than it (:func:`.lipraster.prefilter`: over 1.73 texels a pixel; a camera's pixel
         integrates its area). Default: False for colour (see :data:`_BOX_PIXELS`), True for lip
         probability (its reduced mesh and smooth textures want every pixel: on the tests' synthetic
-        clone its worst parameter tracked 0.16 std off with the middle pixel alone, 0.04 with all).
+        clone its worst parameter tracked 0.12 std off with the middle pixel alone, 0.04 with all).
     """
 
     def __init__(self, model: SpeakerModel, appearance, *, width: int, height: int, mouth_width: float,
@@ -468,11 +469,17 @@ class CloneAnalyser:
         self.box_width = int(np.ceil(_BOX[0] * mouth_width / self.factor))
         self.box_height = max(4, int(np.ceil(_BOX[1] * mouth_width * self._rows / self.factor)))
         # the frame pixels compared under each box pixel, (x, y) within its factor x factor: the middle
-        # one, or all of them; the clone's textures are read at the same pixels' centres
+        # one, or all of them; the clone's textures are read at the same pixels' centres. One pixel off
+        # the box pixel's centre (an even factor): the mesh is moved by the opposite, so the raster reads
+        # at its pixels' centres, each through the triangle that covers the frame pixel's centre, which
+        # also decides whether it is covered, as the clone's renderer decides (a read moved within the
+        # box pixel goes through the map of the triangle under its centre)
         f = self.factor
         along = np.arange(f) if supersample else np.array([f // 2])
         self.supersample = len(along)
         self._picks = np.stack(np.meshgrid(along, along), axis=-1).reshape(-1, 2)
+        offsets = (self._picks + 0.5) / f - 0.5  # (n, 2) box pixels from the box pixel's centre
+        self._nudge = offsets[0] if len(offsets) == 1 else np.zeros(2)
         uv = np.asarray(appearance.uv, dtype=np.float64)[self.mesh.points]
         if compare == "probability":
             textures = np.asarray(appearance.lip_textures, dtype=np.float32)
@@ -485,14 +492,15 @@ class CloneAnalyser:
         # only the texels under the analysis mesh (and a margin): the part of the textures read
         s = filtered.shape[1]
         at = uv * S / prefilter_block(texels)  # in the filtered texture's texels (its texel J spans k of S's)
-        # the margin: a bilinear read's reach, and up to half a box pixel more (reads off a pixel's centre)
-        margin = 2 + int(np.ceil(0.5 * texels * f / prefilter_block(texels)))
+        # the margin: a bilinear read's reach, and up to half a box pixel more (reads off a pixel's centre;
+        # with a field, a box pixel spans twice as many of the frame's rows)
+        margin = 2 + int(np.ceil(0.5 * texels * f * (2 if field else 1) / prefilter_block(texels)))
         lo = np.maximum(np.floor(at.min(axis=0)) - margin, 0).astype(int)
         hi = np.minimum(np.ceil(at.max(axis=0)) + margin, s).astype(int)
         part = np.ascontiguousarray(filtered[:, lo[1]:hi[1], lo[0]:hi[0]])
         uv = (at - lo) / (hi - lo)
         # colours: -1 where the mesh does not reach (the mouth's opening), a value no texel has
-        options = dict(width=self.box_width, height=self.box_height, offsets=(self._picks + 0.5) / f - 0.5,
+        options = dict(width=self.box_width, height=self.box_height, offsets=None if len(offsets) == 1 else offsets,
                        background=0.0 if compare == "probability" else _UNCOVERED)
         if raster == "numpy":
             self.raster = NumpyLipRaster(self.mesh.triangles, uv, part, **options)
@@ -541,7 +549,8 @@ class CloneAnalyser:
     def frame_image(self, image, origin) -> np.ndarray:
         """``(box_height, box_width) float32`` (``compare="probability"``: the lip probability of
         ``image``) or ``(box_height, box_width, 3) float32`` (``"colour"``: its RGB) over the box at
-        ``origin``, averaged over the box's pixels."""
+        ``origin``: under each box pixel the frame's middle pixel (with ``supersample``, the mean of all
+        of them)."""
         x0, y0 = origin
         f = self.factor
         crop = np.ascontiguousarray(image[y0:y0 + self.box_height * f, x0:x0 + self.box_width * f])
@@ -577,7 +586,8 @@ class CloneAnalyser:
         """What places the analysis mesh in the box under ``pose`` with the box at ``origin``, once a
         frame: the mesh's homogeneous image coordinates are ``h0 + a @ hb`` (``(V, 3)``, ``(K, 3 V)``:
         the camera and the pose folded into the rest shape and the basis), its box pixels
-        ``h[:, :2] / h[:, 2] * scale + offset`` (:meth:`pixels`, less ``origin``, over ``factor``)."""
+        ``h[:, :2] / h[:, 2] * scale + offset`` (:meth:`pixels`, less ``origin``, over ``factor``, less the
+        compared frame pixel's place in its box pixel when it is one off the centre)."""
         P = self._camera[:, :3] @ pose[:3, :3]
         p = self._camera[:, :3] @ pose[:3, 3] + self._camera[:, 3]
         h0 = self._sub_rest @ P.T + p
@@ -589,7 +599,7 @@ class CloneAnalyser:
         else:
             scale = np.array([self.width, self.height / self._rows]) / self.factor
             offset = np.array([-x0, -y0], dtype=np.float64) / self.factor
-        return h0, hb, scale, offset
+        return h0, hb, scale, offset - self._nudge
 
     def _draw(self, parameters: np.ndarray, projector, shift=None) -> np.ndarray:
         """:meth:`clone_image` with the frame's :meth:`_projector`."""

@@ -24,10 +24,12 @@ With ``offsets`` (n points of a pixel, as shares of it from its centre) a covere
 the mean of the texture read at those points, each through the texture map of the triangle covering
 the pixel's centre; which pixels are covered does not change. The analysis's box pixel spans
 ``factor x factor`` frame pixels (:class:`faceanim.speaker.analysis.CloneAnalyser`); it reads the
-clone at the centres of the frame pixels it compares under each box pixel (the middle one, or all of
-them), where the clone's renderer reads the texture for those pixels: the same values, with textures
-no finer than a frame pixel (finer, the analyser blurs them to a pixel's scale, as a camera's pixel
-integrates its area). A blur of the textures to the box pixel's scale instead (read once at its
+clone at the centres of the frame pixels it compares under each box pixel, where the clone's renderer
+reads the texture for those pixels: the middle one (the mesh moved so that its centre is the box
+pixel's, an exact match), or all of them (through ``offsets``; where a box pixel straddles two
+triangles, the reads go through the map of the one covering its centre). With textures no finer than
+a frame pixel these are the renderer's values (finer, the analyser blurs them to a pixel's scale, as
+a camera's pixel integrates its area). A blur of the textures to the box pixel's scale instead (read once at its
 centre, against the frame averaged over the box pixel) is one isotropic blur for the whole mouth,
 while the texture map's stretch varies from triangle to triangle (on the speech clips by 1.3x between
 its axes on a median triangle, 1.9x on the 90th percentile): on the clone's own frames the cost's
