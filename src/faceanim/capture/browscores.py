@@ -19,16 +19,13 @@ fall), since the scores can miss what the landmarks see (on one ICT identity of 
 brow scores peak at 0.05 in a full raise the landmarks show as 0.6 cm; held to the scores, the raise was
 lost). So a point tracked ``rise`` with the scores' ``height > 0`` ends at
 ``max(rise, min(height, rise / TRACKED_SHARE))`` (for ``height < 0``, the same with max and min
-swapped); a tracked dip the scores call a raise (a painted face's blink) stays as tracked. The
-tracked movement is kept only as far as the same side's ``eyeBlink`` score, calibrated as the brows'
-are (against the neutral frames' raw median, which a blink among them does not move), leaves the eye
-open: ``movement x (1 - shut)``, and the scores' raise, bounded by that movement over
-:data:`TRACKED_SHARE`, goes with it; except where the scores call a lowering (``browDown`` over
-:data:`_SILENT` once calibrated, the height below 0): a frown, which may shut the eye, is kept. The
-tracker's brow landmarks move with the lids and the scores call a raise in a blink that moves no brow:
-on the round trip's tuning seed the left upper brow rose 0.08 cm through the blink as tracked and 0.13
-with the scores' raise, where the damping spared every point a score spoke for. With the eye open, a
-movement no score calls for stays as tracked (a raise the scores miss). Only the brow points' vertical movement is
+swapped); a tracked dip the scores call a raise (a painted face's blink) stays as tracked. Where no
+brow score speaks (each under :data:`_SILENT` once calibrated), the tracked movement is kept only as
+far as the same side's ``eyeBlink`` score, calibrated as the brows' are (against the neutral frames'
+raw median, which a blink among them does not move), leaves the eye open: ``movement x (1 - shut)``.
+The tracker's brow landmarks move with the lids: on the ICT renders they rise 0.02-0.05 cm through a
+blink that moves no brow, and the scores say nothing there. With the eye open, a movement no score
+calls for stays as tracked (a raise the scores miss). Only the brow points' vertical movement is
 changed; their sideways and depth movement stay as tracked, and so does every other point. A frame
 without scores (a gap the capture filled) keeps its tracked heights. The constants were chosen on one
 ICT identity pair (seed 3) and reported on others (`benchmarks/brow_scores.py`); the damping by the
@@ -69,9 +66,9 @@ class BrowDrive:
     points : (20,) int64
         The brow landmarks, in :data:`BROWS` order (left upper, left lower, right upper, right lower).
     shut : (T, 20) float64, optional
-        How far the eye on each point's side is shut (its calibrated ``eyeBlink`` score, 0 to 1), 0
-        where the scores call the point lower (a frown), NaN where the frame has no scores; None: the
-        eyes count as open throughout.
+        How far the eye on each point's side is shut (its calibrated ``eyeBlink`` score, 0 to 1) where
+        no brow score speaks for the point, 0 where one does, NaN where the frame has no scores; None:
+        the eyes count as open throughout.
     """
 
     heights: np.ndarray
@@ -125,23 +122,22 @@ class BrowDrive:
                 for k, point in enumerate(contour):
                     along = k / (len(contour) - 1)  # 0 at the inner end, 1 at the outer
                     raise_ = (1 - along) * inner + along * outer[side]
-                    height = ens0 * (RAISE * raise_ - LOWER * down[side])
-                    columns.append(height)
+                    columns.append(ens0 * (RAISE * raise_ - LOWER * down[side]))
                     points.append(point)
-                    if shut is not None:  # a lowering the scores call is a frown, the eye shut or not
-                        lowered = (height < 0) & (down[side] >= _SILENT)
-                        shut_columns.append(np.where(lowered, 0.0, shut[side]))
+                    if shut is not None:
+                        silent = (raise_ < _SILENT) & (down[side] < _SILENT)
+                        shut_columns.append(np.where(silent, shut[side], 0.0))
         return cls(np.stack(columns, axis=1), np.array(points),
                    np.stack(shut_columns, axis=1) if shut is not None else None)
 
     def apply(self, displacements, start: int) -> np.ndarray:
         """``displacements (t, L, 3)`` of frames ``start .. start + t`` (head frame, cm), changed in
         place: each brow point's height is the scores', as far as its tracked height agrees, and never
-        short of its tracked height; the tracked height less what the eye's shutting explains, but for
-        a frown (see the module); returned."""
+        short of its tracked height; where no score speaks, the tracked height less what the eye's
+        shutting explains (see the module); returned."""
         heights = self.heights[start:start + len(displacements)]
         column = displacements[:, self.points, 1]
-        if self.shut is not None:  # what the lids' closing explains is taken away, but for a frown
+        if self.shut is not None:  # where no score speaks, what the lids' closing explains is taken away
             column = column * (1.0 - np.nan_to_num(self.shut[start:start + len(displacements)], nan=0.0))
         seen = column / TRACKED_SHARE
         agreed = np.where(heights > 0, np.maximum(column, np.minimum(heights, seen)),
