@@ -198,9 +198,10 @@ def _parser() -> argparse.ArgumentParser:
                                                         "a correction of the tracker's pose)")
     p.add_argument("--field", choices=("top", "bottom"), help="interlaced footage: analyse one field's rows only")
     p.add_argument("--supersample", action="store_true",
-                   help="compare every frame pixel under each of the comparison's box pixels with the clone read "
-                        "at each (default: the middle one; a little closer to the truth on the clone's own frames, "
-                        "at 45-70%% of the speed)")
+                   help="compare the mean of every frame pixel under each of the comparison's box pixels with the "
+                        "clone read at each (default: the middle one, read exactly as the clone's renderer draws it; "
+                        "not closer on the clone's own frames, at 45-70%% of the speed: "
+                        "benchmarks/results/clone_tracking.md)")
     p.add_argument("--raster", choices=("gl", "numpy"),
                    help="the lip-probability renderer (default gl where it can run, else numpy; see "
                         "benchmarks/results/clone_tracking.md)")

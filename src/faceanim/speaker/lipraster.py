@@ -28,13 +28,14 @@ clone at the centres of the frame pixels it compares under each box pixel, where
 reads the texture for those pixels: the middle one (the mesh moved so that its centre is the box
 pixel's, an exact match), or all of them (through ``offsets``; where a box pixel straddles two
 triangles, the reads go through the map of the one covering its centre). With textures no finer than
-a frame pixel these are the renderer's values (finer, the analyser blurs them to a pixel's scale, as
-a camera's pixel integrates its area). A blur of the textures to the box pixel's scale instead (read once at its
-centre, against the frame averaged over the box pixel) is one isotropic blur for the whole mouth,
-while the texture map's stretch varies from triangle to triangle (on the speech clips by 1.3x between
-its axes on a median triangle, 1.9x on the 90th percentile): on the clone's own frames the cost's
-minimum lay about twice as far from the truth (``benchmarks/results/clone_tracking.md``). The texels
-read cost n times more; the triangles and pixels drawn, the same.
+a frame pixel these are the renderer's values (finer, the analyser blurs them to a pixel's scale, as a
+camera's pixel integrates its area). A blur of the textures to the box pixel's scale instead (read
+once at its centre, against the frame averaged over the box pixel) is one isotropic blur for the whole
+mouth, while the texture map's stretch varies from triangle to triangle (on the speech clips by 1.3x
+between its axes on a median triangle, 1.9x on the 90th percentile): on the clone's own frames the
+cost's minimum lay about three times as far from the truth (0.17 against 0.06 of a parameter's
+spread, ``benchmarks/results/clone_tracking.md``). The texels read cost n times more; the triangles
+and pixels drawn, the same.
 """
 
 from __future__ import annotations
@@ -116,7 +117,7 @@ def _reaching(xy: np.ndarray, triangles: np.ndarray, width: int, height: int) ->
 
 class _Raster:
     """What both implementations check and keep: the triangles, the UV, the textures, the box and the
-    texture's samples along each side of a pixel."""
+    points of each pixel the texture is read at (``offsets``)."""
 
     def __init__(self, triangles, uv, textures, *, width: int, height: int, background: float = 0.0,
                  offsets=None):
@@ -327,7 +328,7 @@ void main() {{
 """
 # Reads off the pixel's centre: the texture read at each offset through the triangle's map (its
 # derivatives across the pixel; the map is affine within a triangle, so they are exact).
-_GL_SUPERSAMPLE = """vec2 across = dFdx(texcoord), down = dFdy(texcoord);
+_GL_OFFSET_READS = """vec2 across = dFdx(texcoord), down = dFdy(texcoord);
     const vec2 offsets[{n}] = vec2[{n}]({offsets});
     vec4 total = vec4(0.0);
     for (int i = 0; i < {n}; ++i)
@@ -341,7 +342,7 @@ def _fragment_shader(count: int, offsets=((0.0, 0.0),)) -> str:
     mouth); read at ``offsets`` (n points of the pixel, shares of it from its centre)."""
     mix = " + ".join(f"weights[{q}] * texture(lips, vec3(at, {q}.0))" for q in range(count))
     points = [(float(x), float(y)) for x, y in offsets]
-    body = ("result = mixed(texcoord);" if points == [(0.0, 0.0)] else _GL_SUPERSAMPLE.format(
+    body = ("result = mixed(texcoord);" if points == [(0.0, 0.0)] else _GL_OFFSET_READS.format(
         n=len(points), offsets=", ".join(f"vec2({x!r}, {y!r})" for x, y in points)))
     return _GL_FRAGMENT.format(count=count, mix=mix, body=body)
 
