@@ -12,7 +12,7 @@ from faceanim.capture.metric import canonical_face, metric_geometry
 from faceanim.capture.neutral import parse_neutral, relaxed_window
 from faceanim.capture.smoothing import OneEuro, jitter, one_euro
 from faceanim.errors import InputError
-from faceanim.geometry.align import batch_procrustes, robust_procrustes, weighted_procrustes
+from faceanim.geometry.align import batch_procrustes, robust_procrustes, robust_stretch, weighted_procrustes
 from faceanim.landmarks import FEATURE_POINT_LANDMARK, IBUG68_LANDMARK
 from faceanim.motion import EYEBALL_RADIUS_ES0, Motion, clip_to_range, head_angles, motion_to_faps
 from faceanim.mpeg4 import Fapu, fap_table, feature_points
@@ -85,6 +85,29 @@ def test_robust_procrustes_is_not_tilted_by_a_few_points_carried_off_together():
     assert np.abs(plain - truth).max() > 1e-2
     assert np.abs(robust - truth).max() < 0.1 * np.abs(plain - truth).max()
     np.testing.assert_allclose(robust_procrustes(rest, seen, weights, scale=0.1), truth, atol=1e-12)
+
+
+def test_robust_stretch_undoes_a_depth_squash_along_its_own_direction_only():
+    """Points squashed 4% along a slanted direction about an off-centre point, and shifted along it: the
+    stretch found brings them back exactly, moving them along that direction and no other; a few points
+    carried 5 mm along it pull the fit less than a tenth as far as a plain least squares would."""
+    rng = np.random.default_rng(5)
+    rest = rng.normal(size=(30, 3)) * 3.0
+    u = np.array([0.3, -0.2, 1.0]) / np.linalg.norm([0.3, -0.2, 1.0])
+    along = (rest - [1.0, 0.5, -2.0]) @ u
+    squashed = rest + (-0.04 * along + 0.3)[:, None] * u
+    M = robust_stretch(rest, squashed[None], np.ones(30), u[None], scale=0.05)[0]
+    np.testing.assert_allclose(squashed @ M[:3, :3].T + M[:3, 3], rest, atol=1e-12)
+    moved = (squashed @ M[:3, :3].T + M[:3, 3]) - squashed
+    np.testing.assert_allclose(np.cross(moved, u), 0.0, atol=1e-12)  # along u only
+    carried = squashed.copy()
+    carried[:4] += 0.5 * u
+    plain = robust_stretch(rest, carried[None], np.ones(30), u[None], scale=np.inf)[0]
+    robust = robust_stretch(rest, carried[None], np.ones(30), u[None], scale=0.05)[0]
+
+    def miss(m):
+        return np.abs((squashed[4:] @ m[:3, :3].T + m[:3, 3]) - rest[4:]).max()
+    assert miss(plain) > 1e-2 and miss(robust) < 0.1 * miss(plain)
 
 
 def test_landmark_maps_respect_sides_and_symmetry():

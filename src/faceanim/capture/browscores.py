@@ -103,7 +103,9 @@ class BrowDrive:
         blinks = _BLINKS if all(n in names for n in _BLINKS) else ()
         raw = np.asarray(scores, dtype=np.float64)[:, [names.index(n) for n in _SCORES + blinks]]
         # the landmarks are filtered before they become motion; the scores that move the brows get the
-        # same filter, so a brow does not jitter more than the rest of the face
+        # same settings, so a brow does not jitter more than the rest of the face. One way only: the
+        # landmarks' filter runs both ways (no lag), but run both ways on the scores the round trip's
+        # brows were worse on the tuning seeds (3, 4, 6, 20: 0.601 -> 0.612; benchmarks/roundtrip_ict.py)
         smooth = (raw if smoothing is None else
                   OneEuroFilter(smoothing)(raw[:, :, None], np.asarray(times, dtype=np.float64))[:, :, 0])
         at_rest = smooth if neutral_frames is None else smooth[neutral_frames]

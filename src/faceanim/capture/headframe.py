@@ -9,7 +9,7 @@ from importlib import resources
 import numpy as np
 
 from ..errors import InputError
-from ..geometry.align import robust_procrustes
+from ..geometry.align import robust_procrustes, robust_stretch
 from ..landmarks import FEATURE_POINT_LANDMARK, landmark_names
 from ..motion import Motion
 from ..mpeg4 import fapu_from_points
@@ -39,6 +39,15 @@ _SKULL_SPREAD = 0.1
 # speed by ``beta * _TURN_RADIUS``. A fixed cut-off (1.5 Hz) let the pose lag a real turn by 4 frames
 # at 25 fps: 9 degrees behind a 20-degree yaw sweep on an ICT render (benchmarks/head_pose_ict.py).
 _TURN_RADIUS = 10.0
+# MediaPipe's depths breathe with expressions: on an ICT render of a still head the skull's landmarks'
+# depths about their centre shrank by 2.6% through a blink and 3.6% through a brow raise (the truth:
+# 0.01% and 0.2%), which moved the chin 0.2 cm back and the face's sides forward. A similarity's one
+# scale cannot take that out; a stretch along the line of sight can, and the image does not see it
+# (benchmarks/roundtrip_ict.py). The similarity and the stretch are fitted in turn, this many times.
+_FIT_ROUNDS = 2
+# The stretch's robust scale (cm), half the similarity's: a few forehead points a brow raise brings
+# 3 mm forward pull the face's depth less (tests/test_headframe_pose.py's chin 0.63 -> 0.58 mm).
+_DEPTH_SPREAD = 0.05
 
 
 def head_frame(track: Track):
@@ -72,13 +81,17 @@ def _skull_weights() -> np.ndarray:
 
 def restabilise(points: np.ndarray, pose: np.ndarray, rest: np.ndarray, usable: np.ndarray):
     """Each usable frame's head-frame ``points (T, L, 3)`` moved onto the face's own ``rest (L, 3)`` by
-    the similarity over the skull's landmarks; ``pose (T, 4, 4)`` takes up the inverse, so camera-space
-    positions are unchanged. Returns new ``(points, pose)``.
+    the similarity over the skull's landmarks, then stretched along the line of sight onto the rest's
+    depths over the same landmarks; ``pose (T, 4, 4)`` takes up the similarity's inverse, so
+    camera-space positions are unchanged but for the stretch along the line of sight (which the image
+    does not see). Returns new ``(points, pose)``.
 
     The head frame from :func:`head_frame` is fitted to MediaPipe's canonical face, which is nobody's
     face at rest: a person's expression changes how it fits. Fitted to the person's own neutral, the
-    skull's points stay put and only expression remains. The fit is robust (:func:`robust_procrustes`):
-    skull points an expression carries off count less.
+    skull's points stay put and only expression remains. The fit is robust (:func:`robust_procrustes`,
+    :func:`~faceanim.geometry.align.robust_stretch`): skull points an expression carries off count
+    less. The stretch takes out the depth MediaPipe's reconstruction breathes with an expression
+    (:data:`_FIT_ROUNDS`): a skull's depth does not change.
     """
     points, pose = np.array(points, dtype=np.float64), np.array(pose, dtype=np.float64)
     _restabilise_in_place(points, pose, rest, usable)
@@ -103,11 +116,33 @@ def _restabilise_in_place(points, pose: np.ndarray, rest: np.ndarray, usable: np
     weights = _skull_weights()
     for start, stop, frames, block in _usable_blocks(points, usable):
         moved = block[frames - start]
-        to_frame = robust_procrustes(rest[:468], moved[:, :468], weights, scale=_SKULL_SPREAD)
-        back = np.linalg.inv(to_frame)
-        block[frames - start] = np.einsum("tij,tlj->tli", back[:, :3, :3], moved) + back[:, None, :3, 3]
+        to_frame = np.tile(np.eye(4), (len(frames), 1, 1))
+        for _ in range(_FIT_ROUNDS):  # the similarity and the depth's stretch, each fitted given the other
+            fit = robust_procrustes(rest[:468], moved[:, :468], weights, scale=_SKULL_SPREAD)
+            to_frame = to_frame @ fit
+            moved = _apply(np.linalg.inv(fit), moved)
+            sight = _towards_camera(pose[frames] @ to_frame)
+            moved = _apply(robust_stretch(rest[:468], moved[:, :468], weights, sight, scale=_DEPTH_SPREAD), moved)
+        block[frames - start] = moved
         points[start:stop] = block
         pose[frames] = pose[frames] @ to_frame
+
+
+def _apply(maps: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Affine ``maps (T, 4, 4)`` applied to ``points (T, L, 3)``."""
+    return np.einsum("tij,tlj->tli", maps[:, :3, :3], points) + maps[:, None, :3, 3]
+
+
+def _towards_camera(pose: np.ndarray) -> np.ndarray:
+    """``(T, 3)``: the unit direction from the head to the camera in the head frame, for each ``pose
+    (T, 4, 4)`` (head frame to camera, the camera at the origin); the head's own forward axis (+z)
+    where the pose puts the head at the camera (no translation: a pose not measured)."""
+    linear = pose[:, :3, :3] / np.cbrt(np.linalg.det(pose[:, :3, :3]))[:, None, None]
+    distance = np.linalg.norm(pose[:, :3, 3], axis=1)
+    away = distance > 0
+    seen = np.tile([0.0, 0.0, 1.0], (len(pose), 1))
+    seen[away] = np.einsum("tji,tj->ti", linear[away], -pose[away, :3, 3] / distance[away, None])
+    return seen
 
 
 @functools.cache
@@ -122,9 +157,7 @@ def view_features(pose: np.ndarray) -> np.ndarray:
     """``(T, 5)``: where the camera is seen from the head, for each ``pose (T, 4, 4)`` (head frame to
     camera): the unit direction from the head to the camera in the head frame, its x and y (about the
     sines of the yaw and the pitch the camera sees the face at), and their squares and product."""
-    linear = pose[:, :3, :3] / np.cbrt(np.linalg.det(pose[:, :3, :3]))[:, None, None]
-    towards = -pose[:, :3, 3] / np.linalg.norm(pose[:, :3, 3], axis=1, keepdims=True)
-    x, y = np.einsum("tji,tj->ti", linear, towards)[:, :2].T
+    x, y = _towards_camera(pose)[:, :2].T
     return np.stack([x, y, x * x, y * y, x * y], axis=1)
 
 
@@ -157,29 +190,59 @@ def head_frame_into(landmarks, usable: np.ndarray, times: np.ndarray, width: int
                     smoothing: OneEuro | None = DEFAULT_SMOOTHING) -> None:
     """Fill ``points (T, L, 3)`` (an array or a :class:`~faceanim.framestore.FrameStore` of the same
     length) and ``pose (T, 4, 4)`` with :func:`head_frame` of the normalised ``landmarks`` (an array
-    or a store), filtered by ``smoothing`` as they go, a block of frames at a time: what is held is a
-    block, however long the video."""
-    point_filter = turn_filter = move_filter = None
-    if smoothing is not None:
-        point_filter, move_filter = OneEuroFilter(smoothing), OneEuroFilter(smoothing)
-        turn_filter = OneEuroFilter(OneEuro(smoothing.min_cutoff, smoothing.beta * _TURN_RADIUS, smoothing.d_cutoff))
-    for start in range(0, len(landmarks), _BLOCK):
+    or a store), filtered by ``smoothing`` both ways, a block of frames at a time: what is held is a
+    block, however long the video.
+
+    The One Euro filter runs forward over the video, then backward, and the two are averaged: run one
+    way, it lagged a blink's lid by 2 frames at 25 fps, and each way's lag cancels the other's (the
+    capture is of a whole video, so the frames after each one are there to be read). The backward
+    pass makes each block's head frame again (a third of a millisecond a frame) rather than keep the
+    unfiltered points."""
+    if smoothing is None:
+        for start, stop, block, turned in _head_frame_blocks(landmarks, usable, width, height):
+            points[start:stop], pose[start:stop] = block, turned
+        return
+    forward, backward = _HeadFilter(smoothing), _HeadFilter(smoothing)
+    for start, stop, block, turned in _head_frame_blocks(landmarks, usable, width, height):
+        forward(block, turned, usable[start:stop], times[start:stop])
+        points[start:stop], pose[start:stop] = block, turned
+    for start, stop, block, turned in _head_frame_blocks(landmarks, usable, width, height, backwards=True):
+        back = slice(None, None, -1)  # the frames in reverse, their times negated: time runs forward for the filter
+        backward(block[back], turned[back], usable[start:stop][back], -times[start:stop][back])
+        points[start:stop] = 0.5 * (points[start:stop] + block)
+        pose[start:stop] = 0.5 * (pose[start:stop] + turned)
+
+
+def _head_frame_blocks(landmarks, usable: np.ndarray, width: int, height: int, *, backwards: bool = False):
+    """``(start, stop, points, pose)`` of :func:`head_frame` a block of :data:`_BLOCK` frames at a time
+    (NaN points and the identity pose on frames without a face), the last block first if ``backwards``."""
+    starts = range(0, len(landmarks), _BLOCK)
+    for start in reversed(starts) if backwards else starts:
         stop = min(start + _BLOCK, len(landmarks))
-        raw, ok, when = landmarks[start:stop], usable[start:stop], times[start:stop]
+        raw, ok = landmarks[start:stop], usable[start:stop]
         block = np.full(raw.shape, np.nan)
         turned = np.tile(np.eye(4), (stop - start, 1, 1))
         if ok.any():
             block[ok], turned[ok] = metric_geometry_frames(raw[ok], width, height)
-        if smoothing is not None:
-            point_filter(block, when, out=block)
-            # frames without a face restart the pose's filters as they do the points' (they hold the
-            # identity, which the filters would otherwise take for a turn back to the camera's axes)
-            translation = move_filter(np.where(ok[:, None, None], turned[:, None, :3, 3], np.nan), when)[:, 0]
-            linear = turn_filter(np.where(ok[:, None, None], turned[:, :3, :3], np.nan), when)
-            turned[ok, :3, 3] = translation[ok]
-            turned[ok, :3, :3] = linear[ok]
-        points[start:stop] = block
-        pose[start:stop] = turned
+        yield start, stop, block, turned
+
+
+class _HeadFilter:
+    """The One Euro filters of the head-frame points and of the pose's move and turn, run over
+    successive blocks of frames (their state carried across), each block filtered in place."""
+
+    def __init__(self, smoothing: OneEuro):
+        self._points, self._move = OneEuroFilter(smoothing), OneEuroFilter(smoothing)
+        self._turn = OneEuroFilter(OneEuro(smoothing.min_cutoff, smoothing.beta * _TURN_RADIUS, smoothing.d_cutoff))
+
+    def __call__(self, block: np.ndarray, turned: np.ndarray, ok: np.ndarray, when: np.ndarray) -> None:
+        block[:] = self._points(block, when)
+        # frames without a face restart the pose's filters as they do the points' (they hold the
+        # identity, which the filters would otherwise take for a turn back to the camera's axes)
+        translation = self._move(np.where(ok[:, None, None], turned[:, None, :3, 3], np.nan), when)[:, 0]
+        linear = self._turn(np.where(ok[:, None, None], turned[:, :3, :3], np.nan), when)
+        turned[ok, :3, 3] = translation[ok]
+        turned[ok, :3, :3] = linear[ok]
 
 
 def mouth_gap(points) -> np.ndarray:
