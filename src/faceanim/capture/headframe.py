@@ -130,7 +130,7 @@ def _restabilise_in_place(points, pose: np.ndarray, rest: np.ndarray, usable: np
 
 def _apply(maps: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Affine ``maps (T, 4, 4)`` applied to ``points (T, L, 3)``."""
-    return np.einsum("tij,tlj->tli", maps[:, :3, :3], points) + maps[:, None, :3, 3]
+    return np.matmul(points, maps[:, :3, :3].transpose(0, 2, 1)) + maps[:, None, :3, 3]
 
 
 def _towards_camera(pose: np.ndarray) -> np.ndarray:

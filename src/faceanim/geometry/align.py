@@ -68,10 +68,10 @@ def batch_procrustes(source, targets, weights) -> np.ndarray:
     w = np.asarray(weights, dtype=np.float64)
     w = np.broadcast_to(w / w.sum(axis=-1, keepdims=True), targets.shape[:2])
     mu_s = w @ source
-    mu_t = np.einsum("tn,tnd->td", w, targets)
+    mu_t = np.matmul(w[:, None, :], targets)[:, 0]  # matmul, not einsum: BLAS, several times faster
     cs = source - mu_s[:, None]
     ct = targets - mu_t[:, None]
-    covariance = np.einsum("tni,tnj->tij", ct * w[..., None], cs)
+    covariance = np.matmul((ct * w[..., None]).transpose(0, 2, 1), cs)
     U, S, Vt = np.linalg.svd(covariance)
     flip = np.sign(np.linalg.det(U) * np.linalg.det(Vt))
     flip[flip == 0] = 1.0
@@ -97,7 +97,7 @@ def robust_procrustes(source, targets, weights, *, scale: float, rounds: int = 5
     w = np.broadcast_to(w0, targets.shape[:2])
     for _ in range(rounds):
         M = batch_procrustes(source, targets, w)
-        fitted = np.einsum("tij,nj->tni", M[:, :3, :3], source) + M[:, None, :3, 3]
+        fitted = np.matmul(source, M[:, :3, :3].transpose(0, 2, 1)) + M[:, None, :3, 3]
         # residuals measured at the source's size: divide out the fitted scale
         size = np.cbrt(np.abs(np.linalg.det(M[:, :3, :3])))[:, None]
         r = np.linalg.norm(targets - fitted, axis=-1) / size
@@ -127,8 +127,8 @@ def robust_stretch(source, targets, weights, directions, *, scale: float, rounds
     w0 = np.asarray(weights, dtype=np.float64)
     u = np.asarray(directions, dtype=np.float64)
     centre = (w0 @ source) / w0.sum()
-    along = np.einsum("tnc,tc->tn", targets - centre, u)
-    wanted = np.einsum("nc,tc->tn", source - centre, u)
+    along = np.matmul(targets - centre, u[:, :, None])[..., 0]
+    wanted = u @ (source - centre).T
     w = np.broadcast_to(w0, along.shape)
     for _ in range(rounds + 1):
         sw, sx, sy = w.sum(axis=1), (w * along).sum(axis=1), (w * wanted).sum(axis=1)
