@@ -9,7 +9,8 @@ faceanim's capture as it is, and with the two parts of issue 16 part 5 turned of
 * the head fit to the person's neutral made plain again (every skull landmark at full weight, not
   ``robust_procrustes``), and
 * the brows' heights as tracked instead of read from the Face Landmarker's scores
-  (``capture/browscores.py``).
+  (``capture/browscores.py``), and the eyes' sideways slide in a blink as tracked
+  (``capture/blinkslide.py``).
 
 The constants (the fit's spread, 0.1 cm; RAISE and LOWER in browscores.py) were chosen on the tuning
 seed; the reporting seeds were not looked at while choosing. Relative error per segment (0 exact, 1 no
@@ -45,12 +46,12 @@ def plain_capture():
     import faceanim.capture.headframe as headframe
     import faceanim.capture.stream as stream
 
-    spread, drive = headframe._SKULL_SPREAD, stream.brow_drive
+    spread, drives = headframe._SKULL_SPREAD, stream.score_drives
     headframe._SKULL_SPREAD = np.inf  # Cauchy weights of 1: the plain weighted Procrustes
-    stream.brow_drive = lambda *args, **kw: None
+    stream.score_drives = lambda *args, **kw: []  # nothing from the scores: brows nor blinks' slide
 
     def undo():
-        headframe._SKULL_SPREAD, stream.brow_drive = spread, drive
+        headframe._SKULL_SPREAD, stream.score_drives = spread, drives
     return undo
 
 

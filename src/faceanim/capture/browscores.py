@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..validation import as_array
+from .blinkslide import shut_eyes
 from .smoothing import OneEuro, OneEuroFilter
 
 __all__ = ["BrowDrive", "BROWS", "RAISE", "LOWER", "TRACKED_SHARE"]
@@ -55,7 +56,6 @@ _FILTER = OneEuro()
 BROWS = {"Left": ((336, 296, 334, 293, 300), (285, 295, 282, 283, 276)),
          "Right": ((107, 66, 105, 63, 70), (55, 65, 52, 53, 46))}
 _SCORES = ("browInnerUp", "browOuterUpLeft", "browOuterUpRight", "browDownLeft", "browDownRight")
-_BLINKS = ("eyeBlinkLeft", "eyeBlinkRight")  # optional: without them the eyes count as open
 _SILENT = 0.01  # a calibrated score under this (1% of full) says nothing: the filtered scores hover there
 
 
@@ -100,8 +100,7 @@ class BrowDrive:
         names = list(names)
         if scores is None or any(n not in names for n in _SCORES):
             return None
-        blinks = _BLINKS if all(n in names for n in _BLINKS) else ()
-        raw = np.asarray(scores, dtype=np.float64)[:, [names.index(n) for n in _SCORES + blinks]]
+        raw = np.asarray(scores, dtype=np.float64)[:, [names.index(n) for n in _SCORES]]
         # the landmarks are filtered before they become motion; the scores that move the brows get the
         # same settings, so a brow does not jitter more than the rest of the face. One way only: the
         # landmarks' filter runs both ways (no lag), but run both ways on the scores the round trip's
@@ -113,16 +112,9 @@ class BrowDrive:
         if not len(at_rest):
             return None
         s0 = np.percentile(at_rest, 5, axis=0) if neutral_frames is None else at_rest.max(axis=0)
-        if blinks and neutral_frames is not None:
-            # the eyes' rest: the raw scores' median, which a blink among the neutral frames does not move
-            # (filtered, the blink's tail spreads over most of a 10-frame neutral)
-            eyes = raw[neutral_frames, len(_SCORES):]
-            eyes = eyes[np.isfinite(eyes).all(axis=1)]
-            if len(eyes):
-                s0[len(_SCORES):] = np.median(eyes, axis=0)
         on = np.clip((smooth - s0) / np.maximum(1.0 - s0, 1e-3), 0.0, 1.0)
         inner, outer, down = on[:, 0], {"Left": on[:, 1], "Right": on[:, 2]}, {"Left": on[:, 3], "Right": on[:, 4]}
-        shut = {"Left": on[:, 5], "Right": on[:, 6]} if blinks else None
+        shut = shut_eyes(scores, names, times, neutral_frames, smoothing=smoothing)
         columns, points, shut_columns = [], [], []
         for side, contours in BROWS.items():
             for contour in contours:

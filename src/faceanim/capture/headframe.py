@@ -13,6 +13,7 @@ from ..geometry.align import robust_procrustes, robust_stretch
 from ..landmarks import FEATURE_POINT_LANDMARK, landmark_names
 from ..motion import Motion
 from ..mpeg4 import fapu_from_points
+from .blinkslide import BlinkSlide
 from .browscores import BrowDrive
 from .jaw import correct_jaw_depth
 from .metric import canonical_face, metric_geometry_frames
@@ -21,7 +22,8 @@ from .smoothing import OneEuro, OneEuroFilter
 from .track import Track
 
 __all__ = ["head_frame", "head_frame_into", "settle", "displacements_from", "mouth_gap", "track_to_motion",
-           "restabilise", "rest_window", "brow_drive", "view_features", "unview", "DEFAULT_SMOOTHING"]
+           "restabilise", "rest_window", "brow_drive", "blink_slide", "score_drives", "view_features", "unview",
+           "DEFAULT_SMOOTHING"]
 
 DEFAULT_SMOOTHING = OneEuro()
 
@@ -311,6 +313,24 @@ def brow_drive(blendshapes, names, times, fapu, usable: np.ndarray, window,
     return BrowDrive.of_scores(blendshapes, names, times, fapu.ens0, at_rest, smoothing=smoothing)
 
 
+def blink_slide(blendshapes, names, times, rest: np.ndarray, fapu, usable: np.ndarray, window,
+                smoothing: OneEuro | None = DEFAULT_SMOOTHING) -> BlinkSlide | None:
+    """The sideways slide the tracker draws with each blink (:class:`~.blinkslide.BlinkSlide`), its
+    scores calibrated as :func:`brow_drive`'s; None without blink scores."""
+    at_rest = None if window is None else window[0] + np.flatnonzero(usable[window[0]:window[1]])
+    return BlinkSlide.of_scores(blendshapes, names, times, rest, fapu.es0, at_rest, smoothing=smoothing)
+
+
+def score_drives(blendshapes, names, times, rest: np.ndarray, fapu, usable: np.ndarray, window,
+                 smoothing: OneEuro | None = DEFAULT_SMOOTHING) -> list:
+    """What the tracker's blendshape scores change in the displacements, in the order applied: the
+    brows' heights (:func:`brow_drive`), then the eyes' sideways slide in a blink (:func:`blink_slide`);
+    each has ``apply(displacements, start)``. Empty without scores."""
+    drives = (brow_drive(blendshapes, names, times, fapu, usable, window, smoothing),
+              blink_slide(blendshapes, names, times, rest, fapu, usable, window, smoothing))
+    return [drive for drive in drives if drive is not None]
+
+
 def displacements_from(points: np.ndarray, rest: np.ndarray, usable: np.ndarray) -> np.ndarray:
     """Head-frame ``points (t, L, 3)`` (changed in place) as displacements from ``rest``: NaN on frames
     without a face, the jaw's points given the depth the chin's drop implies (:func:`.jaw.correct_jaw_depth`)."""
@@ -339,7 +359,8 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
         overrides ``neutral``.
     scores : bool
         Brow heights from the tracker's blendshape scores where the track has them
-        (:mod:`.browscores`); False keeps the tracked heights.
+        (:mod:`.browscores`), and the eyes' sideways slide in a blink taken out (:mod:`.blinkslide`);
+        False keeps the tracked movement.
     """
     usable = track.usable
     # One (T, L, 3) array, made here and then changed in place, step by step: a long video's
@@ -350,9 +371,9 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
     window = rest_window(points, usable, track.fps, neutral, neutral_points)
     rest, fapu = settle(points, pose, usable, track.fps, neutral=window, neutral_points=neutral_points)
     displacements = displacements_from(points, rest, usable)
-    brows = (brow_drive(track.blendshapes, track.blendshape_names, track.times, fapu, usable, window, smoothing)
-             if scores else None)
-    if brows is not None:
-        brows.apply(displacements, 0)
+    if scores:
+        for drive in score_drives(track.blendshapes, track.blendshape_names, track.times, rest, fapu, usable,
+                                  window, smoothing):
+            drive.apply(displacements, 0)
     displacements.flags.writeable = False  # handed over: the Motion takes it uncopied
     return Motion(landmark_names(len(rest)), rest, displacements, pose, track.fps, fapu, valid=usable)

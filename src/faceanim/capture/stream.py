@@ -22,10 +22,10 @@ from ..landmarks import landmark_names
 from ..motion import Motion
 from .headframe import (
     DEFAULT_SMOOTHING,
-    brow_drive,
     displacements_from,
     head_frame_into,
     rest_window,
+    score_drives,
     settle,
 )
 from .smoothing import OneEuro
@@ -125,11 +125,13 @@ def captured(source, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTH
     head_frame_into(raw, usable, times, width, height, points, pose, smoothing)
     window = rest_window(points, usable, fps, neutral, neutral_points)
     rest, fapu = settle(points, pose, usable, fps, neutral=window, neutral_points=neutral_points)
-    brows = brow_drive(blendshapes, names, times, fapu, usable, window, smoothing) if scores else None
+    drives = score_drives(blendshapes, names, times, rest, fapu, usable, window, smoothing) if scores else []
 
     def frames(start: int, stop: int) -> np.ndarray:
         moved = displacements_from(points[start:stop], rest, usable[start:stop])
-        return moved if brows is None else brows.apply(moved, start)
+        for drive in drives:
+            drive.apply(moved, start)
+        return moved
 
     motion = Motion.streamed(landmark_names(len(rest)), rest, frames, pose, fps, fapu, valid=usable)
     return Capture(motion, raw, valid, filled, times, fps, width, height, name, blendshapes, names)

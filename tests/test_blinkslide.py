@@ -1,0 +1,87 @@
+"""The eyes' sideways slide in a blink: the scores' calibration, and what is taken out where."""
+
+import numpy as np
+import pytest
+
+from faceanim.capture.blinkslide import EYE_CORNERS, FAR, NEAR, BlinkSlide, shut_eyes
+from faceanim.capture.metric import canonical_face
+
+NAMES = ("browInnerUp", "eyeBlinkLeft", "eyeBlinkRight")
+
+
+def blinks(frames: int, left: float, right: float, rest: float = 0.2) -> np.ndarray:
+    """(frames, 3) scores at ``rest``, the blinks at ``left`` and ``right`` from frame 30 on."""
+    scores = np.full((frames, len(NAMES)), rest)
+    scores[30:, 1], scores[30:, 2] = left, right
+    return scores
+
+
+def times(frames: int) -> np.ndarray:
+    return np.arange(frames) / 25.0
+
+
+def test_the_neutral_scores_are_the_rest_and_a_full_score_is_shut():
+    shut = shut_eyes(blinks(80, 1.0, 0.6), NAMES, times(80), np.arange(10), smoothing=None)
+    np.testing.assert_allclose(shut["Left"][:30], 0.0)
+    np.testing.assert_allclose(shut["Left"][30:], 1.0)
+    np.testing.assert_allclose(shut["Right"][30:], (0.6 - 0.2) / 0.8)
+
+
+def test_a_blink_among_the_neutral_frames_does_not_move_the_rest():
+    scores = blinks(80, 1.0, 1.0)
+    scores[4] = 0.9  # one shut frame in the neutral window
+    shut = shut_eyes(scores, NAMES, times(80), np.arange(10), smoothing=None)
+    np.testing.assert_allclose(shut["Left"][30:], 1.0)
+
+
+def test_without_a_neutral_the_rest_is_the_videos_low_scores_and_without_blink_scores_nothing():
+    shut = shut_eyes(blinks(80, 1.0, 1.0), NAMES, times(80), None, smoothing=None)
+    np.testing.assert_allclose(shut["Right"][:30], 0.0)
+    np.testing.assert_allclose(shut["Right"][30:], 1.0)
+    assert shut_eyes(blinks(80, 1.0, 1.0)[:, :1], NAMES[:1], times(80), None, smoothing=None) is None
+    assert shut_eyes(None, NAMES, times(80), None, smoothing=None) is None
+
+
+@pytest.fixture(scope="module")
+def face():
+    """MediaPipe's canonical face with 10 iris points at the eyes' centres (478 points, cm), its ES0
+    (between the eyes' centres) and the centres."""
+    mesh = canonical_face().vertices
+    centres = {side: mesh[list(ids)].mean(axis=0) for side, ids in EYE_CORNERS.items()}
+    rest = np.vstack([mesh, np.repeat([centres["Right"], centres["Left"]], 5, axis=0)])
+    return rest, float(np.linalg.norm(centres["Left"] - centres["Right"])), centres
+
+
+def test_a_shut_eye_takes_out_the_slide_near_it_only_and_leaves_height_and_depth(face):
+    rest, es0, centres = face
+    frames = 40
+    slide = BlinkSlide.of_scores(blinks(frames, 1.0, 0.2), NAMES, times(frames), rest, es0, np.arange(10),
+                                 smoothing=None)
+    moved = np.full((frames, len(rest), 3), 0.3)
+    out = slide.apply(moved.copy(), 0)
+    np.testing.assert_array_equal(out[:, :, 1:], moved[:, :, 1:])  # heights and depths as tracked
+    np.testing.assert_array_equal(out[:30], moved[:30])              # eyes open: nothing taken
+    distance = np.linalg.norm(rest - centres["Left"], axis=1) / es0
+    near, far = distance < NEAR, distance > FAR
+    face_mesh = np.arange(len(rest)) < 468
+    assert (near & face_mesh).sum() > 20
+    np.testing.assert_allclose(out[30:, near & face_mesh, 0], 0.0, atol=1e-12)  # the left eye shut: no slide
+    right_far = (np.linalg.norm(rest - centres["Right"], axis=1) / es0 > FAR)
+    np.testing.assert_array_equal(out[30:, far & right_far, 0], 0.3)               # far from both: as tracked
+    between = ~near & ~far & right_far & face_mesh
+    assert between.any()
+    assert np.all((out[30:, between, 0] > 0) & (out[30:, between, 0] < 0.3))       # a fall-off, not a seam
+    assert len(rest) == 478
+    np.testing.assert_array_equal(out[30:, 468:, 0], 0.3)                          # the irises follow the eyeballs
+
+
+def test_a_frame_without_scores_and_a_later_block_are_handled_in_step(face):
+    rest, es0, _ = face
+    scores = blinks(60, 1.0, 1.0)
+    scores[45] = np.nan
+    slide = BlinkSlide.of_scores(scores, NAMES, times(60), rest, es0, np.arange(10), smoothing=None)
+    whole = slide.apply(np.full((60, len(rest), 3), 0.3), 0)
+    block = slide.apply(np.full((20, len(rest), 3), 0.3), 40)
+    np.testing.assert_array_equal(block, whole[40:])
+    np.testing.assert_array_equal(whole[45], 0.3)  # no scores: the frame as tracked
+    assert whole[44, 263, 0] == 0.0
