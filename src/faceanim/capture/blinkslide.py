@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..validation import as_array
-from .smoothing import OneEuro, OneEuroFilter
+from .smoothing import OneEuro, filtered_scores
 
 __all__ = ["BlinkSlide", "shut_eyes", "EYE_CORNERS", "NEAR", "FAR"]
 
@@ -48,12 +48,10 @@ def shut_eyes(scores, names, times, neutral_frames, *, smoothing: OneEuro | None
     ``neutral_frames`` (a blink among them does not move it; filtered, a blink's tail spreads over most
     of a 10-frame neutral), or with no neutral frames (None) or none with scores, the filtered scores'
     5th percentile over the video. None when the scores lack a blink score."""
-    names = list(names)
-    if scores is None or any(n not in names for n in BLINKS):
+    picked = filtered_scores(scores, names, BLINKS, times, smoothing)
+    if picked is None:
         return None
-    raw = np.asarray(scores, dtype=np.float64)[:, [names.index(n) for n in BLINKS]]
-    smooth = (raw if smoothing is None else
-              OneEuroFilter(smoothing)(raw[:, :, None], np.asarray(times, dtype=np.float64))[:, :, 0])
+    raw, smooth = picked
     at_rest = raw[neutral_frames] if neutral_frames is not None else raw[:0]
     at_rest = at_rest[np.isfinite(at_rest).all(axis=1)]
     if len(at_rest):

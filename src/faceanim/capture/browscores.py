@@ -45,7 +45,7 @@ import numpy as np
 
 from ..validation import as_array
 from .blinkslide import shut_eyes
-from .smoothing import OneEuro, OneEuroFilter
+from .smoothing import OneEuro, filtered_scores
 
 __all__ = ["BrowDrive", "BROWS", "RAISE", "LOWER", "TRACKED_SHARE"]
 
@@ -97,16 +97,14 @@ class BrowDrive:
         elsewhere (then each score's 5th percentile over the video is its rest). ``smoothing``: the
         filter the landmarks had. None when the scores lack a brow score or no neutral frame has
         scores."""
-        names = list(names)
-        if scores is None or any(n not in names for n in _SCORES):
-            return None
-        raw = np.asarray(scores, dtype=np.float64)[:, [names.index(n) for n in _SCORES]]
         # the landmarks are filtered before they become motion; the scores that move the brows get the
         # same settings, so a brow does not jitter more than the rest of the face. One way only: the
         # landmarks' filter runs both ways (no lag), but run both ways on the scores the round trip's
         # brows were worse on the tuning seeds (3, 4, 6, 20: 0.601 -> 0.612; benchmarks/roundtrip_ict.py)
-        smooth = (raw if smoothing is None else
-                  OneEuroFilter(smoothing)(raw[:, :, None], np.asarray(times, dtype=np.float64))[:, :, 0])
+        picked = filtered_scores(scores, names, _SCORES, times, smoothing)
+        if picked is None:
+            return None
+        _, smooth = picked
         at_rest = smooth if neutral_frames is None else smooth[neutral_frames]
         at_rest = at_rest[np.isfinite(at_rest).all(axis=1)]
         if not len(at_rest):

@@ -16,6 +16,7 @@ from ..mpeg4 import fapu_from_points
 from .blinkslide import BlinkSlide
 from .browscores import BrowDrive
 from .jaw import correct_jaw_depth
+from .lidskin import follow_lid_skin
 from .metric import canonical_face, metric_geometry_frames
 from .neutral import relaxed_window
 from .smoothing import OneEuro, OneEuroFilter
@@ -333,10 +334,11 @@ def score_drives(blendshapes, names, times, rest: np.ndarray, fapu, usable: np.n
 
 def displacements_from(points: np.ndarray, rest: np.ndarray, usable: np.ndarray) -> np.ndarray:
     """Head-frame ``points (t, L, 3)`` (changed in place) as displacements from ``rest``: NaN on frames
-    without a face, the jaw's points given the depth the chin's drop implies (:func:`.jaw.correct_jaw_depth`)."""
+    without a face, the jaw's points given the depth the chin's drop implies (:func:`.jaw.correct_jaw_depth`),
+    the upper lids' skin brought down with their lash lines (:func:`.lidskin.follow_lid_skin`)."""
     points -= rest
     points[~usable] = np.nan
-    return correct_jaw_depth(rest, points, out=points)
+    return follow_lid_skin(correct_jaw_depth(rest, points, out=points))
 
 
 def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTHING,

@@ -20,6 +20,7 @@ from ..parts import FaceParts
 from ..target import Target
 from .decode import turn_head
 from .deform import parts_frames
+from .lids import LidOpenings
 
 __all__ = ["animate_motion", "shared_points", "MINIMUM_SHARED_POINTS"]
 
@@ -41,7 +42,8 @@ def animate_motion(motion: Motion, target: Target, *, head_motion: bool = False,
 
     Displacements are carried from the motion's head frame into the target's by the similarity that
     best maps the motion's neutral points onto the target's (rotation and one scale, over all shared
-    points, so no single distance's placement error sets the size), then spread over the mesh by
+    points, so no single distance's placement error sets the size), the lids' closing as a share of
+    each eye's opening (:mod:`.lids`, as MPEG-4's eyelid FAPs carry it), then spread over the mesh by
     the head part by part (:class:`~.deform.PartsDeformer`: the jaw turned about its hinge with the
     skin, the residual spread on top by surface-aware interpolation, rigid teeth, lid layers riding
     on the skin; the eyeballs turned by ``gaze``'s FAPs 23-26 when given). ``parts`` defaults to
@@ -63,7 +65,8 @@ def animate_motion(motion: Motion, target: Target, *, head_motion: bool = False,
     names = [names[i] for i in first]
     source = motion.neutral[motion.index(names)]
     carry = weighted_procrustes(source, target.mesh.vertices[ids])[:3, :3]
-    displacements = _CarriedControls(motion, names, carry)
+    lids = LidOpenings.of(names, source, target.mesh.vertices[ids], carry)
+    displacements = _CarriedControls(motion, names, carry, lids)
     animation = Animation.streamed(target.mesh, parts_frames(target, parts, ids, displacements, gaze), len(motion),
                                    motion.fps)
     if head_motion:
@@ -79,8 +82,9 @@ class _CarriedControls:
     motion a run of frames at a time (``controls[a:b]``): a streamed capture's motion is never held
     whole. A frame without a face holds the last face seen (zeros, the rest, before the first)."""
 
-    def __init__(self, motion: Motion, names, carry: np.ndarray):
+    def __init__(self, motion: Motion, names, carry: np.ndarray, lids: LidOpenings):
         self._motion, self._at, self._carry = motion, motion.index(names), carry
+        self._lids = lids  # the lids' motion as a share of the eye's opening
         seen = np.where(motion.valid, np.arange(len(motion)), -1)
         self._shown = np.maximum.accumulate(seen)  # the frame whose face each frame shows; -1: the rest
 
@@ -104,4 +108,4 @@ class _CarriedControls:
                 read[inside] = self._motion.chunk(lo, hi)[frames[inside] - lo][:, self._at]
             has = shown >= 0
             out[has] = read[np.searchsorted(frames, shown[has])]
-        return out @ self._carry.T
+        return self._lids(out @ self._carry.T)

@@ -1,0 +1,99 @@
+"""The lids' motion carried as a share of the eye's opening, as MPEG-4's eyelid FAPs carry it.
+
+A Motion's displacements reach a target through one similarity (:mod:`.follow`): a source whose eyes
+are open 0.8 cm moves its lids 0.8 cm to shut them, and the target's lids then move 0.8 cm whatever
+their own opening, so a target with taller eyes never shuts them. On the ICT round trip
+(``benchmarks/roundtrip_ict.py``, tuning seed 3) B's eyes are open 1.06 cm between MediaPipe's
+middle lid points against A's 0.81: B's lash line came down 0.55 cm where the truth's comes down
+0.87, and in the render B's eyes stayed open through the blink. MPEG-4 avoids this for its FAPs: the
+eyelid FAPs are counted in IRISD, the distance between the lids at rest, so a shut eye is 1024 units
+on every face (``../shared/mpeg4/fapu.md``).
+
+So each pair of facing lid points the source and the target share (MediaPipe's eye contour, upper
+over lower, MPEG-4's 3.1/3.3 and 3.2/3.4 among them) has the part of its displacement along the line
+between the two scaled by the target's distance between them over the source's (the source's as
+carried, the similarity's scale included), clipped to [1 / :data:`MOST`, :data:`MOST`]; and where the
+two then close by more than the target's opening they are held where they meet (their closing parts
+scaled back together): lids do not pass each other, and a source whose own lids overshoot (ICT-FaceKit's
+eyeBlink lowers the lash line 0.96 cm whatever the face; on the round trip's seed-3 source, open 0.72
+cm, it passes the lower lid) would otherwise carry the overshoot, scaled, onto the target. The rest of
+each displacement, and every other point, is carried as it is.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..landmarks import landmark_names
+
+__all__ = ["LID_PAIRS", "MOST", "LidOpenings"]
+
+# MediaPipe's eye contours, upper lid over lower lid, outer corner to inner (the corners themselves
+# are not pairs).
+_UPPER = {"left": (466, 388, 387, 386, 385, 384, 398), "right": (246, 161, 160, 159, 158, 157, 173)}
+_LOWER = {"left": (249, 390, 373, 374, 380, 381, 382), "right": (7, 163, 144, 145, 153, 154, 155)}
+_NAMES = landmark_names(478)
+#: Facing lid points, (upper, lower), by the names a Motion gives them ("3.1" over "3.3" ...).
+LID_PAIRS = tuple((_NAMES[u], _NAMES[lo]) for side in ("left", "right") for u, lo in zip(_UPPER[side], _LOWER[side],
+                                                                                         strict=True))
+MOST = 2.0  # a target's opening at most this many times the source's (or this many times smaller) counts
+
+
+@dataclass(frozen=True, eq=False)
+class LidOpenings:
+    """The facing lid points among a target's control points and how their motion is carried.
+
+    Parameters
+    ----------
+    upper, lower : (n,) int64
+        Each pair's upper and lower point, indices among the control points.
+    along : (n, 3) float64
+        Unit vector from the lower point to the upper one on the target at rest.
+    ratio : (n,) float64
+        The target's opening over the source's as carried, clipped.
+    opening : (n,) float64
+        The target's distance between the two at rest.
+    """
+
+    upper: np.ndarray
+    lower: np.ndarray
+    along: np.ndarray
+    ratio: np.ndarray
+    opening: np.ndarray
+
+    @classmethod
+    def of(cls, names, source: np.ndarray, target: np.ndarray, carry: np.ndarray) -> LidOpenings:
+        """For control points ``names`` at ``source (K, 3)`` (the motion's neutral) and ``target (K, 3)``
+        (the target at rest), whose displacements reach the target as ``d @ carry.T``."""
+        index = {name: k for k, name in enumerate(names)}
+        rows = []
+        for upper, lower in LID_PAIRS:
+            if upper not in index or lower not in index:
+                continue
+            u, lo = index[upper], index[lower]
+            apart_source = np.linalg.norm(carry @ (source[u] - source[lo]))
+            between = target[u] - target[lo]
+            apart_target = np.linalg.norm(between)
+            if apart_source > 0.0 and apart_target > 0.0:
+                rows.append((u, lo, between / apart_target, np.clip(apart_target / apart_source, 1.0 / MOST, MOST),
+                             apart_target))
+        if not rows:
+            return cls(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0), np.zeros(0))
+        upper, lower, along, ratio, opening = zip(*rows, strict=True)
+        return cls(np.array(upper), np.array(lower), np.array(along), np.array(ratio), np.array(opening))
+
+    def __call__(self, displacements: np.ndarray) -> np.ndarray:
+        """Carried ``displacements (T, K, 3)`` of the control points, changed in place: each pair's
+        parts along its line scaled by its ratio, then held where the two meet; returned."""
+        if not len(self.upper):
+            return displacements
+        up = np.einsum("tnc,nc->tn", displacements[:, self.upper], self.along)  # along the line, upwards
+        low = np.einsum("tnc,nc->tn", displacements[:, self.lower], self.along)
+        scaled_up, scaled_low = up * self.ratio, low * self.ratio
+        closing = scaled_low - scaled_up  # how much nearer the two come
+        held = np.where(closing > self.opening, self.opening / np.maximum(closing, 1e-12), 1.0)
+        displacements[:, self.upper] += ((scaled_up * held - up)[:, :, None]) * self.along
+        displacements[:, self.lower] += ((scaled_low * held - low)[:, :, None]) * self.along
+        return displacements
