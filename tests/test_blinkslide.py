@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from faceanim.capture.blinkslide import EYE_CORNERS, FAR, NEAR, BlinkSlide, shut_eyes
+from faceanim.capture.browscores import BROWS
 from faceanim.capture.metric import canonical_face
 
 NAMES = ("browInnerUp", "eyeBlinkLeft", "eyeBlinkRight")
@@ -64,11 +65,14 @@ def test_a_shut_eye_takes_out_the_slide_near_it_only_and_leaves_height_and_depth
     distance = np.linalg.norm(rest - centres["Left"], axis=1) / es0
     near, far = distance < NEAR, distance > FAR
     face_mesh = np.arange(len(rest)) < 468
-    assert (near & face_mesh).sum() > 20
-    np.testing.assert_allclose(out[30:, near & face_mesh, 0], 0.0, atol=1e-12)  # the left eye shut: no slide
+    brows = np.zeros(len(rest), dtype=bool)
+    brows[[p for side in BROWS.values() for contour in side for p in contour]] = True
+    assert (near & face_mesh & ~brows).sum() > 20 and (~far & brows).any()  # brows within reach
+    np.testing.assert_allclose(out[30:, near & face_mesh & ~brows, 0], 0.0, atol=1e-12)  # the left eye shut
+    np.testing.assert_array_equal(out[30:, brows, 0], 0.3)  # the brows' sideways movement is their own
     right_far = (np.linalg.norm(rest - centres["Right"], axis=1) / es0 > FAR)
     np.testing.assert_array_equal(out[30:, far & right_far, 0], 0.3)               # far from both: as tracked
-    between = ~near & ~far & right_far & face_mesh
+    between = ~near & ~far & right_far & face_mesh & ~brows
     assert between.any()
     assert np.all((out[30:, between, 0] > 0) & (out[30:, between, 0] < 0.3))       # a fall-off, not a seam
     assert len(rest) == 478
@@ -85,3 +89,30 @@ def test_a_frame_without_scores_and_a_later_block_are_handled_in_step(face):
     np.testing.assert_array_equal(block, whole[40:])
     np.testing.assert_array_equal(whole[45], 0.3)  # no scores: the frame as tracked
     assert whole[44, 263, 0] == 0.0
+
+
+def test_the_capture_applies_the_brows_then_the_slide_and_the_brows_shut_eyes_are_the_slides(face):
+    """Both capture paths take their drives from ``score_drives``: with brow and blink scores, the brows'
+    drive and then the slide; the brows' damping reads the same calibrated eyes (neutral frames 0-9,
+    the capture's filter) as the slide does."""
+    from faceanim.capture.browscores import BrowDrive
+    from faceanim.capture.headframe import DEFAULT_SMOOTHING, score_drives
+    from faceanim.mpeg4.fapu import Fapu
+
+    rest, es0, _ = face
+    names = ("browDownLeft", "browDownRight", "browInnerUp", "browOuterUpLeft", "browOuterUpRight",
+             "eyeBlinkLeft", "eyeBlinkRight")
+    rng = np.random.default_rng(1)
+    scores = np.clip(0.2 + 0.05 * rng.normal(size=(80, len(names))), 0, 1)
+    scores[:, :5] = 0.05                  # the brows silent: their damping by the eyes applies everywhere
+    scores[4, 5:] = 0.95                  # a blink inside the neutral window
+    scores[40:60, 5] = 0.9
+    fapu = Fapu(irisd0=1.0, es0=es0, ens0=4.0, mns0=2.0, mw0=5.0)
+    drives = score_drives(scores, names, times(80), rest, fapu, np.ones(80, dtype=bool), (0, 10))
+    assert [type(d) for d in drives] == [BrowDrive, BlinkSlide]
+    brows, slide = drives
+    expected = shut_eyes(scores, names, times(80), np.arange(10), smoothing=DEFAULT_SMOOTHING)
+    np.testing.assert_allclose(slide.shut, np.stack([expected["Left"], expected["Right"]], axis=1))
+    left = list(brows.points).index(BROWS["Left"][0][0])
+    np.testing.assert_allclose(brows.shut[:, left], expected["Left"])
+    assert expected["Left"][45] > 0.8 and expected["Left"][20] < 0.05  # the neutral's blink did not move the rest

@@ -32,3 +32,18 @@ def test_the_pairs_are_each_eyes_lash_line_under_its_own_skin_and_other_layouts_
     assert len(set(LASH)) == len(set(SKIN)) == 14 and not set(LASH) & set(SKIN)
     few = np.full((2, 68, 3), -0.5)
     np.testing.assert_array_equal(follow_lid_skin(few.copy()), few)
+
+
+def test_the_capture_brings_the_lid_skin_down_with_its_displacements():
+    """``displacements_from``, which both capture paths use, applies it: a lash line tracked 0.6 cm down
+    brings its ring down by the share; a frame without a face stays NaN."""
+    from faceanim.capture.headframe import displacements_from
+    from faceanim.capture.metric import canonical_face
+
+    rest = canonical_face().vertices
+    points = np.repeat(rest[None], 2, axis=0)
+    points[0, LASH, 1] -= 0.6
+    out = displacements_from(points, rest, np.array([True, False]))
+    np.testing.assert_allclose(out[0, SKIN, 1], -SHARE * 0.6, atol=1e-12)
+    np.testing.assert_allclose(out[0, LASH, 1], -0.6, atol=1e-12)
+    assert np.isnan(out[1]).all()

@@ -12,7 +12,8 @@ Each landmark near an eye therefore keeps its sideways movement (the head frame'
 that eye is open: ``x * (1 - w * shut)``, where ``shut`` is the same side's ``eyeBlink`` score
 calibrated against the neutral (:func:`shut_eyes`, as the brows' scores are) and ``w`` is 1 within
 :data:`NEAR` x ES0 of the eye's centre (the middle of its two corners at rest), falling linearly to 0
-at :data:`FAR` x ES0. Height and depth stay as tracked (the lids' closing is their height). A smile
+at :data:`FAR` x ES0; the brows' own points (:data:`~.browscores.BROWS`) keep theirs (a frown with
+the eyes shut pulls them in). Height and depth stay as tracked (the lids' closing is their height). A smile
 with the eyes shut loses the sideways part of its movement near the eyes, which is small beside its
 rise. Where a frame has no scores, nothing changes.
 
@@ -20,7 +21,8 @@ Measured on the round trip's tuning seeds 3, 4, 6 and 20 (mean of the per-seed m
 segment, 2026-11-24): 0.826 without, 0.798 with the fall-off from 1.5 to 3 cm, 0.793 from 2 to 3.5 cm,
 0.791 from 2.5 to 4 cm; damping the depth as well changed it by 0.004 or less and damping the height
 undid the blink (0.930). The plateau's middle, 2 to 3.5 cm, is about 0.3 to 0.55 of these faces' ES0
-(6.2-7.0 cm). The other segments (jaw, smile, brows) moved by 0.001 or less.
+(6.2-7.0 cm). The other segments (jaw, smile, brows) moved by 0.001 or less. Leaving the brows'
+points out changed none of the four segments' means by more than 0.001.
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ def shut_eyes(scores, names, times, neutral_frames, *, smoothing: OneEuro | None
     by ``smoothing``, less their rest, over what is left to 1. The rest is the raw scores' median over
     ``neutral_frames`` (a blink among them does not move it; filtered, a blink's tail spreads over most
     of a 10-frame neutral), or with no neutral frames (None) or none with scores, the filtered scores'
-    5th percentile over the video. None when the scores lack a blink score."""
+    5th percentile over the video. None when the scores lack a blink score or no frame has them."""
     picked = filtered_scores(scores, names, BLINKS, times, smoothing)
     if picked is None:
         return None
@@ -102,13 +104,18 @@ class BlinkSlide:
             reach.append(np.clip((FAR - distance) / (FAR - NEAR), 0.0, 1.0))
         reach = np.stack(reach)
         reach[:, _FACE_MESH:] = 0.0  # the irises move with the eyeballs, not the skin
+        from .browscores import BROWS  # here: browscores takes its eyes' calibration from this module
+
+        # the brows keep their own sideways movement (a frown with the eyes shut pulls them in)
+        reach[:, [p for side in BROWS.values() for contour in side for p in contour]] = 0.0
         return cls(np.stack([shut["Left"], shut["Right"]], axis=1), reach)
 
     def apply(self, displacements, start: int) -> np.ndarray:
         """``displacements (t, L, 3)`` of frames ``start .. start + t`` (head frame, cm), changed in
         place: each landmark's sideways movement less the share its eyes' shutting takes out; returned."""
         shut = np.nan_to_num(self.shut[start:start + len(displacements)], nan=0.0)
-        # the nearer eye decides: where the two reaches overlap (the bridge of the nose) the larger one
-        kept = np.min(1.0 - shut[:, :, None] * self.reach[None], axis=1)
-        displacements[:, :, 0] *= kept
+        # where the two eyes' reaches overlap (none do on MediaPipe's canonical face) the larger share is
+        # taken out; (t, L) temporaries only, not (t, 2, L)
+        taken = np.maximum(shut[:, :1] * self.reach[0], shut[:, 1:] * self.reach[1])
+        displacements[:, :, 0] *= 1.0 - taken
         return displacements

@@ -362,7 +362,8 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
     scores : bool
         Brow heights from the tracker's blendshape scores where the track has them
         (:mod:`.browscores`), and the eyes' sideways slide in a blink taken out (:mod:`.blinkslide`);
-        False keeps the tracked movement.
+        False keeps the tracked movement (the lid skin's and the jaw's corrections, which need no
+        scores, still apply).
     """
     usable = track.usable
     # One (T, L, 3) array, made here and then changed in place, step by step: a long video's

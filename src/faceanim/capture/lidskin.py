@@ -9,8 +9,10 @@ less than the tracked one (the interpolation takes part of its motion from the r
 So each point of that ring comes down, on top of its tracked movement, by :data:`SHARE` of the
 descent of the lash-line point below it (a rise of the lash line adds nothing). Only the height
 changes. ``SHARE`` was chosen on the round trip's tuning seeds 3, 4, 6 and 20 (blink segment, mean of
-the per-seed medians: 0.786 without, 0.755 at 0.5, 0.750 at 0.35 with the lids' opening scaled, ...),
-whose truth is ICT-FaceKit's own blink, where the same skin moves 0.2-0.4 of the lash line's descent.
+the per-seed medians, 2026-11-24, with the lids carried as a share of the eye's opening,
+:mod:`faceanim.retarget.lids`): 0.786 without, 0.757 at 0.35, 0.756 at 0.5, 0.765 at 0.7; the other
+segments moved by 0.001 or less. Their truth is ICT-FaceKit's own blink, where this skin moves 0.2-0.4
+of the lash line's descent, so the share may flatter the benchmark somewhat.
 """
 
 from __future__ import annotations

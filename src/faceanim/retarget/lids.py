@@ -17,7 +17,9 @@ two then close by more than the target's opening they are held where they meet (
 scaled back together): lids do not pass each other, and a source whose own lids overshoot (ICT-FaceKit's
 eyeBlink lowers the lash line 0.96 cm whatever the face; on the round trip's seed-3 source, open 0.72
 cm, it passes the lower lid) would otherwise carry the overshoot, scaled, onto the target. The rest of
-each displacement, and every other point, is carried as it is.
+each displacement, and every other point, is carried as it is. A target whose control points hold only
+some of a lid's pairs (a hand-written point file) has those scaled alone, and its lid may kink between
+a scaled point and an unscaled neighbour; every layout faceanim places holds whole lids.
 """
 
 from __future__ import annotations
