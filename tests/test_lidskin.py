@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from faceanim.capture.lidskin import LASH_TO_SKIN, SHARE, follow_lid_skin
+from faceanim.capture.lidskin import LASH_TO_SKIN, SHARE, STILL, follow_lid_skin
 
 LASH = [lash for lash, _ in LASH_TO_SKIN]
 SKIN = [skin for _, skin in LASH_TO_SKIN]
@@ -12,9 +12,10 @@ def test_the_ring_above_comes_down_by_its_share_of_the_lash_lines_descent_and_no
     moved = np.random.default_rng(0).normal(scale=0.05, size=(3, 478, 3))
     moved[0, LASH, 1] = -0.6  # shutting
     moved[1, LASH, 1] = 0.2   # opening wide: a rise adds nothing
+    moved[1, LASH[:7], 1] = -0.5 * STILL  # nor does jitter at rest
     moved[2] = np.nan          # no face
     out = follow_lid_skin(moved.copy())
-    np.testing.assert_allclose(out[0, SKIN, 1], moved[0, SKIN, 1] - SHARE * 0.6)
+    np.testing.assert_allclose(out[0, SKIN, 1], moved[0, SKIN, 1] - SHARE * (0.6 - STILL))
     np.testing.assert_array_equal(out[1], moved[1])
     assert np.isnan(out[2]).all()
     others = np.setdiff1d(np.arange(478), SKIN)
@@ -44,6 +45,6 @@ def test_the_capture_brings_the_lid_skin_down_with_its_displacements():
     points = np.repeat(rest[None], 2, axis=0)
     points[0, LASH, 1] -= 0.6
     out = displacements_from(points, rest, np.array([True, False]))
-    np.testing.assert_allclose(out[0, SKIN, 1], -SHARE * 0.6, atol=1e-12)
+    np.testing.assert_allclose(out[0, SKIN, 1], -SHARE * (0.6 - STILL), atol=1e-12)
     np.testing.assert_allclose(out[0, LASH, 1], -0.6, atol=1e-12)
     assert np.isnan(out[1]).all()
