@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from faceanim.capture.blinkslide import EYE_CORNERS, FAR, NEAR, BlinkSlide, shut_eyes
+from faceanim.capture.blinkslide import EYE_CORNERS, FAR, NEAR, BlinkSlide
 from faceanim.capture.browscores import BROWS
 from faceanim.capture.metric import canonical_face
+from faceanim.capture.scores import shut_eyes
 
 NAMES = ("browInnerUp", "eyeBlinkLeft", "eyeBlinkRight")
 

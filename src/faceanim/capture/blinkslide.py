@@ -10,7 +10,7 @@ corner), so the slide is the tracker's.
 
 Each landmark near an eye therefore keeps its sideways movement (the head frame's x) only as far as
 that eye is open: ``x * (1 - w * shut)``, where ``shut`` is the same side's ``eyeBlink`` score
-calibrated against the neutral (:func:`shut_eyes`, as the brows' scores are) and ``w`` is 1 within
+calibrated against the neutral (:func:`~.scores.shut_eyes`, as the brows' scores are) and ``w`` is 1 within
 :data:`NEAR` x ES0 of the eye's centre (the middle of its two corners at rest), falling linearly to 0
 at :data:`FAR` x ES0; the brows' own points (:data:`~.browscores.BROWS`) keep theirs (a frown with
 the eyes shut pulls them in). Height and depth stay as tracked (the lids' closing is their height). A smile
@@ -32,39 +32,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..validation import as_array
-from .smoothing import OneEuro, filtered_scores
+from .browscores import BROWS
+from .scores import BLINKS, shut_eyes
+from .smoothing import OneEuro
 
-__all__ = ["BlinkSlide", "shut_eyes", "EYE_CORNERS", "NEAR", "FAR"]
+__all__ = ["BlinkSlide", "EYE_CORNERS", "NEAR", "FAR"]
 
-BLINKS = ("eyeBlinkLeft", "eyeBlinkRight")
 #: Each eye's outer and inner corner among MediaPipe's landmarks.
 EYE_CORNERS = {"Left": (263, 362), "Right": (33, 133)}
 _FACE_MESH = 468  # MediaPipe's face mesh; the iris points follow
 NEAR, FAR = 0.3, 0.55  # of ES0: the slide is taken out fully within NEAR of an eye's centre, not at all beyond FAR
-
-
-def shut_eyes(scores, names, times, neutral_frames, *, smoothing: OneEuro | None) -> dict[str, np.ndarray] | None:
-    """How far each eye is shut, ``{"Left": (T,), "Right": (T,)}`` in [0, 1] (NaN where a frame has no
-    scores), from ``scores (T, S)`` named ``names`` at ``times (T,)``: the ``eyeBlink`` scores filtered
-    by ``smoothing``, less their rest, over what is left to 1. The rest is the raw scores' median over
-    ``neutral_frames`` (a blink among them does not move it; filtered, a blink's tail spreads over most
-    of a 10-frame neutral), or with no neutral frames (None) or none with scores, the filtered scores'
-    5th percentile over the video. None when the scores lack a blink score or no frame has them."""
-    picked = filtered_scores(scores, names, BLINKS, times, smoothing)
-    if picked is None:
-        return None
-    raw, smooth = picked
-    at_rest = raw[neutral_frames] if neutral_frames is not None else raw[:0]
-    at_rest = at_rest[np.isfinite(at_rest).all(axis=1)]
-    if len(at_rest):
-        rest = np.median(at_rest, axis=0)
-    else:
-        seen = smooth[np.isfinite(smooth).all(axis=1)]
-        if not len(seen):
-            return None
-        rest = np.percentile(seen, 5, axis=0)
-    on = np.clip((smooth - rest) / np.maximum(1.0 - rest, 1e-3), 0.0, 1.0)
-    return {"Left": on[:, 0], "Right": on[:, 1]}
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,7 +51,7 @@ class BlinkSlide:
     Parameters
     ----------
     shut : (T, 2) float64
-        How far the left and the right eye are shut per frame (:func:`shut_eyes`); NaN where the frame
+        How far the left and the right eye are shut per frame (:func:`~.scores.shut_eyes`); NaN where the frame
         has no scores.
     reach : (2, L) float64
         How fully each landmark's slide goes with the left and the right eye (``w`` of the module), 0
@@ -91,7 +68,7 @@ class BlinkSlide:
     @classmethod
     def of_scores(cls, scores, names, times, rest, es0: float, neutral_frames, *,
                   smoothing: OneEuro | None) -> BlinkSlide | None:
-        """From the scores (as :func:`shut_eyes`) and the landmarks' ``rest (L, 3)`` (head frame, cm;
+        """From the scores (as :func:`~.scores.shut_eyes`) and the landmarks' ``rest (L, 3)`` (head frame, cm;
         MediaPipe's layout) with the face's ``es0``; None without blink scores."""
         shut = shut_eyes(scores, names, times, neutral_frames, smoothing=smoothing)
         if shut is None:
@@ -104,8 +81,6 @@ class BlinkSlide:
             reach.append(np.clip((FAR - distance) / (FAR - NEAR), 0.0, 1.0))
         reach = np.stack(reach)
         reach[:, _FACE_MESH:] = 0.0  # the irises move with the eyeballs, not the skin
-        from .browscores import BROWS  # here: browscores takes its eyes' calibration from this module
-
         # the brows keep their own sideways movement (a frown with the eyes shut pulls them in)
         reach[:, [p for side in BROWS.values() for contour in side for p in contour]] = 0.0
         return cls(np.stack([shut["Left"], shut["Right"]], axis=1), reach)

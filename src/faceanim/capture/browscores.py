@@ -44,8 +44,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..validation import as_array
-from .blinkslide import shut_eyes
-from .smoothing import OneEuro, filtered_scores
+from .scores import filtered_scores, shut_eyes
+from .smoothing import OneEuro
 
 __all__ = ["BrowDrive", "BROWS", "RAISE", "LOWER", "TRACKED_SHARE"]
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["OneEuro", "OneEuroFilter", "one_euro", "one_euro_both_ways", "jitter", "filtered_scores"]
+__all__ = ["OneEuro", "OneEuroFilter", "one_euro", "one_euro_both_ways", "jitter"]
 
 
 @dataclass(frozen=True)
@@ -124,15 +124,3 @@ def jitter(points, fps: float, still) -> float:
     mask = np.asarray(still)[1:-1] & np.isfinite(accel)
     return float(accel[mask].mean()) if mask.any() else float("nan")
 
-
-def filtered_scores(scores, names, wanted, times, settings: OneEuro | None):
-    """The ``wanted`` columns of ``scores (T, S)`` named ``names``, raw and filtered by ``settings`` (each
-    column on its own; None: not filtered), as ``(raw, filtered)``, both ``(T, len(wanted))``; None when
-    there are no scores or one of ``wanted`` is missing."""
-    names = list(names)
-    if scores is None or any(n not in names for n in wanted):
-        return None
-    raw = np.asarray(scores, dtype=np.float64)[:, [names.index(n) for n in wanted]]
-    smooth = (raw if settings is None else
-              OneEuroFilter(settings)(raw[:, :, None], np.asarray(times, dtype=np.float64))[:, :, 0])
-    return raw, smooth
