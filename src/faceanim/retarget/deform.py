@@ -12,6 +12,8 @@ its rim, which rides on the opening's edge. See :mod:`faceanim.parts`.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..errors import InputError
@@ -25,6 +27,7 @@ from ..parts import FaceParts
 from ..parts.jaw import unfolded_jaw_weight
 from ..target import Target
 from .contact import TeethContact, TeethCover
+from .jawturn import fitted_jaw_turns
 from .transfer import SparseTransfer
 
 __all__ = ["PartsDeformer", "parts_frames", "deform_parts", "jaw_angles", "eye_rotations", "JAW_LIMITS"]
@@ -334,22 +337,31 @@ def as_frames(displacements):
 def parts_frames(target: Target, parts: FaceParts | None, control_vertices, displacements,
                  gaze: FapStream | None = None):
     """A :data:`~faceanim.geometry.animation.FrameSource` of ``target`` moved by its control vertices'
-    ``displacements (T, K, 3)``, part by part: the jaw's turn read from the chin (feature point 2.1,
-    when it is a control vertex), the eyeballs turned by ``gaze``'s FAPs when given. ``parts``
-    defaults to the target's own."""
+    ``displacements (T, K, 3)``, part by part: the jaw turned about the centre and by the turns the
+    chin's control points say (:func:`~.jawturn.fitted_jaw_turns`; where they say nothing, about the
+    parts' centre by the angle of the chin, feature point 2.1, when it is a control vertex), the
+    eyeballs turned by ``gaze``'s FAPs when given. ``parts`` defaults to the target's own."""
     from ..parts import face_parts
 
     parts = face_parts(target) if parts is None else parts
     ids = np.asarray(control_vertices, dtype=np.int64)
-    deformer = PartsDeformer(target, parts, ids)
     chin = np.flatnonzero(ids == target.points.get("2.1", -1))
     displacements = as_frames(displacements)
-    if len(chin) and parts.jaw_weight.any():
+    turns = None
+    if parts.jaw_weight.any():
+        lip = target.points.get("8.2")
+        turns = fitted_jaw_turns(parts, target.mesh.vertices, ids, displacements, mouth_width=target.fapu.mw0,
+                                 below=None if lip is None else target.mesh.vertices[lip], limits=JAW_LIMITS)
+    if turns is not None:
+        parts = replace(parts, hinge=turns.centre)
+        angles = turns.angles
+    elif len(chin) and parts.jaw_weight.any():
         chin_moves = np.concatenate([displacements[a:a + _FIT_CHUNK][:, chin[0]]
                                      for a in range(0, len(displacements), _FIT_CHUNK)])
         angles = jaw_angles(parts, target.mesh.vertices[ids[chin[0]]], chin_moves)
     else:
         angles = np.zeros(len(displacements))
+    deformer = PartsDeformer(target, parts, ids)
     eyes = eye_rotations(gaze, parts) if gaze is not None else None
     return deformer.source(displacements, angles, eyes)
 
