@@ -384,6 +384,41 @@ def test_coincident_eye_corners_are_refused_by_name():
         face_axes(p)
 
 
+def test_no_view_into_the_avatars_parted_lips_sees_out_through_the_back_of_the_mask():
+    """The default avatar is a mask, open behind. With the lower lip let down 1.5 cm, every pixel inside
+    the lips' opening, seen from the front or 40 degrees to either side, shows the mouth (its fan, the
+    lining from the lips' edge back to the fan's rim, the teeth) or the skin, never the background.
+    Without the lining, a view from 40 degrees saw past the fan's rim at the far corner of the mouth."""
+    pytest.importorskip("mediapipe", reason="needs faceanim[capture] to make the default avatar")
+    from skimage.measure import points_in_poly
+
+    from faceanim.geometry.topology import boundary_loops
+    from faceanim.inputs import load_target
+    from faceanim.render.camera import front_camera
+    from faceanim.render.rasterizer import Renderer
+
+    target = load_target(None)
+    parts = face_parts(target)
+    mesh, rest = target.mesh, target.mesh.vertices
+    ids = np.unique(target.ids([n for n in target.points if not n.startswith("mp")]))
+    lower = np.isin(ids, target.ids([n for n in ("2.3", "2.8", "2.9", "8.2", "8.7", "8.8") if n in target.points]))
+    down = np.zeros((2, len(ids), 3))
+    down[1, lower] = -1.5 * parts.axes[1]
+    opened = PartsDeformer(target, parts, ids, relax=False)(down, [0.0, 0.0], fit_weights=False)[1]
+    skin = mesh.triangles[parts.mask("skin")[mesh.triangles].all(axis=1)]
+    mouth = rest[target.ids(["8.3", "8.4"])].mean(axis=0)
+    lips = min(boundary_loops(skin), key=lambda loop: np.linalg.norm(rest[loop].mean(axis=0) - mouth))
+    unseen = (0, 255, 0)  # a background no part is drawn in
+    pixels = np.stack(np.meshgrid(np.arange(320) + 0.5, np.arange(320) + 0.5), axis=-1).reshape(-1, 2)
+    with Renderer(320, 320, background=unseen) as renderer:
+        for yaw in (-40.0, 0.0, 40.0):
+            camera = front_camera(opened[lips], 320, 320, vertical_fov=20.0, margin=1.4, yaw=yaw)
+            image = renderer.render(mesh, camera, positions=opened, mode="shaded")
+            inside = points_in_poly(pixels, camera.project(opened[lips])).reshape(320, 320)
+            through = inside & (image == unseen).all(axis=2)
+            assert inside.sum() > 2000 and not through.any(), (yaw, int(through.sum()))
+
+
 def test_the_avatars_mouth_socket_spans_the_parted_lips():
     """The default avatar's mouth is a separate socket (a fan behind the lips) and its eyes flat caps,
     not balls: both hang from rims riding on their openings. With the lower lip let down 1.5 cm, the
@@ -406,7 +441,9 @@ def test_the_avatars_mouth_socket_spans_the_parted_lips():
     lining = np.flatnonzero(parts.mask("socket"))
     piece = component_labels(target.mesh)
     nearest = lining[np.argmin(np.linalg.norm(rest[lining] - mouth, axis=1))]
-    socket = lining[piece[lining] == piece[nearest]]  # the mouth's, not an eye's
+    beside = lining[np.linalg.norm(rest[lining] - rest[nearest], axis=1) < 2.0]  # the mouth's fan and band
+    fan = min(np.unique(piece[beside]), key=lambda p: np.sum(piece[lining] == p))  # the smaller of the two
+    socket = lining[piece[lining] == fan]  # the mouth's fan: not its band, nor an eye's cap
     drop = -(positions[1, socket] - rest[socket]) @ parts.axes[1]
     height = (rest[socket] - mouth) @ parts.axes[1]
     assert drop[height < height.min() + 0.2].min() > 1.0  # the lower rim goes down with the lip

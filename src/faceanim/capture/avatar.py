@@ -88,7 +88,7 @@ def face_from_landmarks(landmarks, image: np.ndarray, *, subdivisions: int = 2, 
                         widening=_EYE_WIDENING, uv=to_uv(skin_pixels[loop]))
         else:
             builder.cap(loop, vertices[loop].mean(axis=0), swatch_uv["mouth"], part=2, recess=_MOUTH_RECESS,
-                        widening=_MOUTH_WIDENING, drop=_MOUTH_DROP)
+                        widening=_MOUTH_WIDENING, drop=_MOUTH_DROP, lined=True)
             builder.teeth(loop, swatch_uv["teeth"], part=3)
     return builder.mesh(texture)
 
@@ -171,9 +171,12 @@ class _PartBuilder:
         self.parts.append(np.full(len(triangles), part, dtype=np.int64))
         self.count += len(vertices)
 
-    def cap(self, loop, centre, centre_uv, *, part, recess, widening, drop=0.0, uv=None):
+    def cap(self, loop, centre, centre_uv, *, part, recess, widening, drop=0.0, uv=None, lined=False):
         """A fan over an opening, widened about its centre, set back, and its lower half let down by
-        ``drop`` (for a jaw that opens), so the rim never shows a gap."""
+        ``drop`` (for a jaw that opens), so the rim never shows a gap. ``lined``: with a band from the
+        opening's edge back to the fan's rim (a separate piece, so both its edges ride on the opening's
+        edge as the rim does), since a view from the side into an opening set this far back passes
+        between the two and out through the back of the mask."""
         rim = self.vertices[0][loop].copy()
         rim[:, :2] = centre[:2] + widening * (rim[:, :2] - centre[:2])
         rim[:, 2] -= recess
@@ -184,6 +187,10 @@ class _PartBuilder:
         fan = [(i, (i + 1) % n, n) for i in range(n)]
         corners_uv = centre_uv if uv is None else np.vstack([uv, centre_uv])
         self._add(np.vstack([rim, tip]), fan, corners_uv, part)
+        if lined:
+            after = (np.arange(n) + 1) % n
+            band = np.r_[np.c_[np.arange(n), after, n + after], np.c_[np.arange(n), n + after, n + np.arange(n)]]
+            self._add(np.vstack([self.vertices[0][loop], rim]), band, centre_uv, part)
 
     def teeth(self, mouth_loop, colour_uv, *, part):
         """A band behind the upper inner lip: hidden with the lips closed, seen when they part."""
