@@ -117,3 +117,33 @@ def test_the_capture_applies_the_brows_then_the_slide_and_the_brows_shut_eyes_ar
     left = list(brows.points).index(BROWS["Left"][0][0])
     np.testing.assert_allclose(brows.shut[:, left], expected["Left"])
     assert expected["Left"][45] > 0.8 and expected["Left"][20] < 0.05  # the neutral's blink did not move the rest
+
+
+def test_frames_filled_across_a_lost_face_keep_the_slide_of_the_frames_around_them(face):
+    """Where the tracker lost the face for a few frames their landmarks are filled across the gap
+    (``track.fill_short_gaps``) but they have no scores: the scores are filled the same way, so a
+    blink's slide holds through the gap instead of coming back for those frames. A frame with no
+    face at all, and frames past the last scored one, are left without."""
+    from faceanim.capture.headframe import score_drives
+    from faceanim.capture.scores import scores_across_filled_frames
+    from faceanim.mpeg4.fapu import Fapu
+
+    rest, es0, _ = face
+    scores = blinks(60, 1.0, 1.0)
+    scores[40:43] = np.nan  # lost in the middle of the shut eyes, its landmarks filled
+    scores[50] = np.nan     # a frame with no face at all
+    scores[58:] = np.nan    # the face lost at the end
+    usable = np.ones(60, dtype=bool)
+    usable[50] = usable[58:] = False
+    fapu = Fapu(irisd0=1.0, es0=es0, ens0=4.0, mns0=2.0, mw0=5.0)
+    (slide,) = score_drives(scores, NAMES, times(60), rest, fapu, usable, (0, 10), smoothing=None)
+    moved = slide.apply(np.full((60, len(rest), 3), 0.3), 0)
+    np.testing.assert_array_equal(moved[39:44, 263, 0], 0.0)  # shut through the gap: no slide at the corner
+    np.testing.assert_array_equal(moved[50, 263, 0], 0.3)     # no face: the frame as given
+    np.testing.assert_array_equal(moved[58:, 263, 0], 0.3)
+
+    ramp = np.c_[np.linspace(0.0, 1.0, 11)]
+    ramp[3:6] = np.nan
+    filled = scores_across_filled_frames(ramp, np.ones(11, dtype=bool))
+    np.testing.assert_allclose(filled[:, 0], np.linspace(0.0, 1.0, 11))  # linear across the gap
+    assert np.isnan(ramp[3:6]).all() and scores_across_filled_frames(None, np.ones(11, dtype=bool)) is None

@@ -19,6 +19,7 @@ from .jaw import correct_jaw_depth
 from .lidskin import follow_lid_skin
 from .metric import canonical_face, metric_geometry_frames
 from .neutral import relaxed_window
+from .scores import scores_across_filled_frames
 from .smoothing import OneEuro, OneEuroFilter
 from .track import Track
 
@@ -326,7 +327,9 @@ def score_drives(blendshapes, names, times, rest: np.ndarray, fapu, usable: np.n
                  smoothing: OneEuro | None = DEFAULT_SMOOTHING) -> list:
     """What the tracker's blendshape scores change in the displacements, in the order applied: the
     brows' heights (:func:`brow_drive`), then the eyes' sideways slide in a blink (:func:`blink_slide`);
-    each has ``apply(displacements, start)``. Empty without scores."""
+    each has ``apply(displacements, start)``. Empty without scores. Frames whose landmarks were filled
+    across a short gap get scores filled the same way (:func:`~.scores.scores_across_filled_frames`)."""
+    blendshapes = scores_across_filled_frames(blendshapes, usable)
     drives = (brow_drive(blendshapes, names, times, fapu, usable, window, smoothing),
               blink_slide(blendshapes, names, times, rest, fapu, usable, window, smoothing))
     return [drive for drive in drives if drive is not None]

@@ -8,7 +8,7 @@ import numpy as np
 
 from .smoothing import OneEuro, OneEuroFilter
 
-__all__ = ["BLINKS", "filtered_scores", "shut_eyes"]
+__all__ = ["BLINKS", "filtered_scores", "shut_eyes", "scores_across_filled_frames"]
 
 BLINKS = ("eyeBlinkLeft", "eyeBlinkRight")
 
@@ -48,3 +48,27 @@ def shut_eyes(scores, names, times, neutral_frames, *, smoothing: OneEuro | None
         rest = np.percentile(seen, 5, axis=0)
     on = np.clip((smooth - rest) / np.maximum(1.0 - rest, 1e-3), 0.0, 1.0)
     return {"Left": on[:, 0], "Right": on[:, 1]}
+
+
+def scores_across_filled_frames(scores, usable: np.ndarray) -> np.ndarray | None:
+    """``scores (T, S)`` with the frames that have landmarks but no scores filled as their landmarks were:
+    linearly between the scored frames on either side (a short gap the tracker lost the face in is
+    filled so, :func:`~.track.fill_short_gaps`). Without it the drives the scores call for (the brows'
+    heights, the blink's slide) were left out on those frames and came back after: a pop in the middle
+    of a blink. Frames without landmarks, and frames before the first or after the last scored one,
+    stay as they are. None stays None."""
+    if scores is None:
+        return None
+    scores = np.asarray(scores, dtype=np.float64)
+    scored = np.isfinite(scores).all(axis=1)
+    if scored.all() or not scored.any():
+        return scores
+    at = np.flatnonzero(scored)
+    wanted = np.flatnonzero(np.asarray(usable, dtype=bool) & ~scored)
+    wanted = wanted[(wanted > at[0]) & (wanted < at[-1])]
+    if not len(wanted):
+        return scores
+    out = scores.copy()
+    for column in range(scores.shape[1]):
+        out[wanted, column] = np.interp(wanted, at, scores[at, column])
+    return out
