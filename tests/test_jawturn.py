@@ -74,3 +74,16 @@ def test_a_still_chin_or_too_few_points_on_the_jaw_say_nothing(chin):
     weak = np.where(np.arange(len(chin)) < 2, 1.0, 0.5)  # only two points follow the jaw fully
     assert fitted_jaw_turns(_parts(chin, weak, parts.hinge), chin, np.arange(len(chin)), opening,
                             mouth_width=MOUTH_WIDTH) is None
+
+
+def test_the_centre_stays_between_the_guess_and_the_condyles(chin):
+    """A chin turning about a centre in front of and below the parts' guess (skin that stretches as it
+    turns reads so) moves the centre no further down or forward than a tenth of the mouth's width."""
+    guess = np.array([0.0, -3.0, 4.0])
+    ahead = np.array([0.0, -4.0, 6.0])  # 1 cm below and 2 cm in front of the guess
+    displacements = np.stack([_turned(chin, ahead, a) for a in np.linspace(0.0, 0.4, 20)]) - chin
+    turns = fitted_jaw_turns(_parts(chin, np.ones(len(chin)), guess), chin, np.arange(len(chin)), displacements,
+                             mouth_width=MOUTH_WIDTH)
+    shift = turns.centre - guess
+    assert shift[1] >= -0.1 * MOUTH_WIDTH - 1e-9 and shift[2] <= 0.1 * MOUTH_WIDTH + 1e-9
+    assert shift[2] == pytest.approx(0.1 * MOUTH_WIDTH)  # as far forward as it may go
