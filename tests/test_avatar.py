@@ -35,7 +35,7 @@ def test_avatar_is_opened_at_eyes_and_mouth_with_parts_behind(astronaut):
     for faces in (mesh.parts == 1, fan, mesh.parts == 3):  # eyes, mouth and teeth face out of the face, behind the skin
         # (the mouth's fan's mean is the lowest: 0.50 on FaceMesh's landmarks, 0.49 on the Face Landmarker's)
         assert normals[faces, 2].mean() > 0.45
-    # The mouth's lining, from the lips' inner edge back to the fan's rim, faces into the mouth and forward.
+    # The mouth's lining, from the lips' inner edge back to the fan's rim, faces forward as every part does.
     assert (normals[mouth & ~fan, 2] >= 0).all() and (mouth & ~fan).sum() == 2 * fan.sum()
 
 

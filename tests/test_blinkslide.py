@@ -134,7 +134,7 @@ def test_frames_filled_across_a_lost_face_keep_the_slide_of_the_frames_around_th
     scores[50] = np.nan     # a frame with no face at all
     scores[58:] = np.nan    # the face lost at the end
     usable = np.ones(60, dtype=bool)
-    usable[50] = usable[58:] = False
+    usable[50] = False  # the end's frames have landmarks (a saved track's own fill) but nothing to fill between
     fapu = Fapu(irisd0=1.0, es0=es0, ens0=4.0, mns0=2.0, mw0=5.0)
     (slide,) = score_drives(scores, NAMES, times(60), rest, fapu, usable, (0, 10), smoothing=None)
     moved = slide.apply(np.full((60, len(rest), 3), 0.3), 0)

@@ -60,15 +60,15 @@ def scores_across_filled_frames(scores, usable: np.ndarray) -> np.ndarray | None
     if scores is None:
         return None
     scores = np.asarray(scores, dtype=np.float64)
-    scored = np.isfinite(scores).all(axis=1)
-    if scored.all() or not scored.any():
-        return scores
-    at = np.flatnonzero(scored)
-    wanted = np.flatnonzero(np.asarray(usable, dtype=bool) & ~scored)
-    wanted = wanted[(wanted > at[0]) & (wanted < at[-1])]
-    if not len(wanted):
-        return scores
-    out = scores.copy()
-    for column in range(scores.shape[1]):
-        out[wanted, column] = np.interp(wanted, at, scores[at, column])
+    usable = np.asarray(usable, dtype=bool)
+    out = scores
+    for column in range(scores.shape[1]):  # each score on its own: a row may lack only some
+        scored = np.flatnonzero(np.isfinite(scores[:, column]))
+        if not len(scored):
+            continue
+        wanted = np.flatnonzero(usable & ~np.isfinite(scores[:, column]))
+        wanted = wanted[(wanted > scored[0]) & (wanted < scored[-1])]
+        if len(wanted):
+            out = scores.copy() if out is scores else out
+            out[wanted, column] = np.interp(wanted, scored, scores[scored, column])
     return out

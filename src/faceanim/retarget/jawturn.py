@@ -11,10 +11,10 @@ So the motion says where its jaw turns: the control points on the chin (below th
 jaw carries all the skin) are taken as one body turning about the axis across the face, and their
 displacements over the widest openings give the centre, shared by every frame, and each frame's turn
 about it. The chin's skin is not bone (on ICT's jawOpen it turns about 15 degrees about a centre far
-behind, where the teeth turn 27 about the condyles), so the centre is kept between the guess and the
-condyles (:data:`_UP_AND_BACK`). On the tuning pairs of ``benchmarks/roundtrip_ict.py`` the lower teeth
-on the jawOpen frames came 0.83 cm from the truth (median over pairs; 1.24 turned about the guess), and
-0.54 with the exact motion (1.07).
+behind, where the teeth turn 27 about the condyles), so the centre is kept in a box above and behind the
+guess, towards the condyles (:data:`_UP_AND_BACK` of the mouth's width up, and as much back). On the
+tuning pairs of ``benchmarks/roundtrip_ict.py`` the lower teeth on the jawOpen frames came 0.83 cm from
+the truth (median over pairs; 1.24 turned about the guess), and 0.54 with the exact motion (1.07).
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ __all__ = ["JawTurns", "fitted_jaw_turns", "CHIN_WEIGHT"]
 CHIN_WEIGHT = 0.9  # control points whose skin follows this much of the jaw's turn are taken as on the jaw
 _FITTED_FRAMES = 256  # the widest openings the centre is fitted on (frames read, not the whole motion)
 _LEAST_OPENING = 0.05  # of the mouth's width: a chin moving less says nothing of where it turns
+_STILL = 1e-6  # of the mouth's width: a point moving no further on any frame is pinned, not followed
 _NOISE = 0.01  # of the mouth's width: how far a tracked chin point strays from a rigid turn
 # Of the mouth's width: how far the parts' centre may be from the fitted one. It decides only where the
 # chin's motion leaves the centre open (points that all move one way say nothing of how far off it is).
@@ -102,7 +103,8 @@ def fitted_jaw_turns(parts: FaceParts, rest: np.ndarray, control_vertices, displ
     above and behind it (:data:`_DOWN_OR_FORWARD` below or in front), on the :data:`_FITTED_FRAMES`
     frames where those points move most; then every frame's turn is the rigid turn about it that fits them best. None
     where there are fewer than 3 such points or they never move :data:`_LEAST_OPENING` of the mouth's
-    width.
+    width. Points held still on every frame (pinned, not followed) are not counted; frames with NaN are not
+    fitted on, and their turns are NaN.
     """
     ids = np.asarray(control_vertices, dtype=np.int64)
     on_jaw = parts.mask("skin")[ids] & (parts.jaw_weight[ids] >= CHIN_WEIGHT)
@@ -112,10 +114,19 @@ def fitted_jaw_turns(parts: FaceParts, rest: np.ndarray, control_vertices, displ
     if len(chin) < 3 or not len(displacements):
         return None
     chunks = range(0, len(displacements), _CHUNK)
+    # Points held still on every frame are not followed but pinned (a FAP stream pins the feature points no
+    # FAP moves): taken as on the jaw, they would hold its turn back.
+    farthest = np.max([np.nanmax(np.linalg.norm(_run(displacements, a)[:, chin], axis=2), axis=0, initial=0.0)
+                       for a in chunks], axis=0)
+    chin = chin[farthest > _STILL * mouth_width]
+    if len(chin) < 3:
+        return None
     size = np.concatenate([np.linalg.norm(_run(displacements, a)[:, chin], axis=2).mean(axis=1) for a in chunks])
+    size[~np.isfinite(size)] = -np.inf  # a frame without a face (NaN) is never among the widest
     if size.max() < _LEAST_OPENING * mouth_width:
         return None
     widest = np.sort(np.argsort(size)[-_FITTED_FRAMES:])
+    widest = widest[np.isfinite(size[widest])]
     p = _plane(parts, rest[ids[chin]])
     moved = p + _plane(parts, _rows(displacements, widest)[:, chin])
     prior = _plane(parts, parts.hinge)
