@@ -290,3 +290,32 @@ def test_blendshapes_of_a_track_saved_without_scores_is_refused(tmp_path, capsys
     track.save(tmp_path / "new.npz")  # a track with scores is a source like its video
     assert main(["blendshapes", str(tmp_path / "new.npz"), "-o", str(tmp_path / "take.csv")]) == 0
     assert read_livelink_csv(tmp_path / "take.csv").weights.shape == (78, 52)
+
+
+def test_frames_filled_across_a_gap_get_weights_between_their_neighbours(tmp_path):
+    """A saved track whose face was lost for three frames (landmarks filled, no scores) gives a take with
+    those frames in it, their weights on the line between the frames either side, as the capture fills
+    them (``capture.scores.scores_across_filled_frames``)."""
+    pytest.importorskip("mediapipe", reason="capture needs faceanim[capture]")
+    from dataclasses import replace
+
+    from faceanim.capture.track import track_video
+
+    track = track_video(shared("videos", "d0.mp4"), progress=False)
+    lost = np.arange(30, 33)
+    valid, filled, scores = track.valid.copy(), track.filled.copy(), np.array(track.blendshapes)
+    valid[lost], filled[lost], scores[lost] = False, True, np.nan
+    replace(track, valid=valid, filled=filled, blendshapes=scores).save(tmp_path / "gap.npz")
+    assert main(["blendshapes", str(tmp_path / "gap.npz"), "-o", str(tmp_path / "take.csv")]) == 0
+    weights = read_livelink_csv(tmp_path / "take.csv").weights
+    whole = read_livelink_csv(_take_of(track, tmp_path)).weights
+    assert weights.shape == whole.shape == (78, 52) and np.isfinite(weights).all()
+    share = ((lost - 29) / 4.0)[:, None]
+    np.testing.assert_allclose(weights[lost], (1 - share) * whole[29] + share * whole[33], atol=1e-4)
+    np.testing.assert_allclose(np.delete(weights, lost, axis=0), np.delete(whole, lost, axis=0), atol=1e-6)
+
+
+def _take_of(track, folder):
+    track.save(folder / "whole.npz")
+    assert main(["blendshapes", str(folder / "whole.npz"), "-o", str(folder / "whole.csv")]) == 0
+    return folder / "whole.csv"

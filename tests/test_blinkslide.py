@@ -122,8 +122,8 @@ def test_the_capture_applies_the_brows_then_the_slide_and_the_brows_shut_eyes_ar
 def test_frames_filled_across_a_lost_face_keep_the_slide_of_the_frames_around_them(face):
     """Where the tracker lost the face for a few frames their landmarks are filled across the gap
     (``track.fill_short_gaps``) but they have no scores: the scores are filled the same way, so a
-    blink's slide holds through the gap instead of coming back for those frames. A frame with no
-    face at all, and frames past the last scored one, are left without."""
+    blink's slide holds through the gap instead of coming back for those frames. Frames with a face
+    past the last scored one hold its scores; a frame with no face at all is left without."""
     from faceanim.capture.headframe import score_drives
     from faceanim.capture.scores import scores_across_filled_frames
     from faceanim.mpeg4.fapu import Fapu
@@ -140,10 +140,15 @@ def test_frames_filled_across_a_lost_face_keep_the_slide_of_the_frames_around_th
     moved = slide.apply(np.full((60, len(rest), 3), 0.3), 0)
     np.testing.assert_array_equal(moved[39:44, 263, 0], 0.0)  # shut through the gap: no slide at the corner
     np.testing.assert_array_equal(moved[50, 263, 0], 0.3)     # no face: the frame as given
-    np.testing.assert_array_equal(moved[58:, 263, 0], 0.3)
+    np.testing.assert_array_equal(moved[58:, 263, 0], 0.0)     # past the last scores: held shut
 
     ramp = np.c_[np.linspace(0.0, 1.0, 11)]
     ramp[3:6] = np.nan
-    filled = scores_across_filled_frames(ramp, np.ones(11, dtype=bool))
-    np.testing.assert_allclose(filled[:, 0], np.linspace(0.0, 1.0, 11))  # linear across the gap
+    ramp[9:] = np.nan
+    usable = np.ones(11, dtype=bool)
+    usable[4] = False
+    filled = scores_across_filled_frames(ramp, usable)
+    np.testing.assert_allclose(filled[[3, 5], 0], [0.3, 0.5])  # linear across the gap
+    assert np.isnan(filled[4, 0])  # no face
+    np.testing.assert_allclose(filled[9:, 0], 0.8)  # held past the last
     assert np.isnan(ramp[3:6]).all() and scores_across_filled_frames(None, np.ones(11, dtype=bool)) is None

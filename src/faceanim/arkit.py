@@ -32,18 +32,16 @@ def take_of_capture(capture, *, neutral: tuple[int, int] | None = None):
         The capture has no blendshape scores (a track saved before faceanim tracked with the Face
         Landmarker), or no frame of the ``neutral`` window has a face.
     """
+    from .capture.scores import scores_across_filled_frames
     from .motion import gaze_angles, head_angles, rotation_part
     from .rig.livelink import Take, arkit_weights
 
     if capture.blendshapes is None:
         raise InputError(f"{capture.source}: holds no blendshape scores (a track saved by an older faceanim); "
                          "track the video again")
-    weights = arkit_weights(capture.blendshapes, capture.blendshape_names)
-    found = np.flatnonzero(capture.valid & np.isfinite(weights).all(axis=1))
-    filled = np.flatnonzero(capture.usable & ~np.isin(np.arange(len(weights)), found))
-    for j in range(weights.shape[1]):  # across short gaps, as the landmarks are
-        weights[filled, j] = np.interp(filled, found, weights[found, j])
     usable = capture.usable
+    # across short gaps, as the landmarks are
+    weights = arkit_weights(scores_across_filled_frames(capture.blendshapes, usable), capture.blendshape_names)
     if neutral is not None:
         start, end = neutral
         if not 0 <= start < end <= len(usable):

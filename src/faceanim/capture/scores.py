@@ -55,8 +55,9 @@ def scores_across_filled_frames(scores, usable: np.ndarray) -> np.ndarray | None
     linearly between the scored frames on either side (a short gap the tracker lost the face in is
     filled so, :func:`~.track.fill_short_gaps`). Without it the drives the scores call for (the brows'
     heights, the blink's slide) were left out on those frames and came back after: a pop in the middle
-    of a blink. Frames without landmarks, and frames before the first or after the last scored one,
-    stay as they are. None stays None."""
+    of a blink. Frames with landmarks before the first or after the last scored one (a saved track's
+    own fill) hold the nearest scores; frames without landmarks stay as they are. Each score column on
+    its own. None stays None. The Live Link take (:mod:`faceanim.arkit`) fills its weights here too."""
     if scores is None:
         return None
     scores = np.asarray(scores, dtype=np.float64)
@@ -67,7 +68,6 @@ def scores_across_filled_frames(scores, usable: np.ndarray) -> np.ndarray | None
         if not len(scored):
             continue
         wanted = np.flatnonzero(usable & ~np.isfinite(scores[:, column]))
-        wanted = wanted[(wanted > scored[0]) & (wanted < scored[-1])]
         if len(wanted):
             out = scores.copy() if out is scores else out
             out[wanted, column] = np.interp(wanted, scored, scores[scored, column])

@@ -123,4 +123,3 @@ def jitter(points, fps: float, still) -> float:
     accel = np.linalg.norm(p[2:] - 2 * p[1:-1] + p[:-2], axis=-1).mean(axis=-1) * fps * fps
     mask = np.asarray(still)[1:-1] & np.isfinite(accel)
     return float(accel[mask].mean()) if mask.any() else float("nan")
-
