@@ -12,7 +12,7 @@ from faceanim.capture.metric import canonical_face, metric_geometry
 from faceanim.capture.neutral import parse_neutral, relaxed_window
 from faceanim.capture.smoothing import OneEuro, jitter, one_euro
 from faceanim.errors import InputError
-from faceanim.geometry.align import batch_procrustes, robust_procrustes, robust_stretch, weighted_procrustes
+from faceanim.geometry.align import batch_procrustes, robust_depth_affine, robust_procrustes, weighted_procrustes
 from faceanim.landmarks import FEATURE_POINT_LANDMARK, IBUG68_LANDMARK
 from faceanim.motion import EYEBALL_RADIUS_ES0, Motion, clip_to_range, head_angles, motion_to_faps
 from faceanim.mpeg4 import Fapu, fap_table, feature_points
@@ -87,27 +87,55 @@ def test_robust_procrustes_is_not_tilted_by_a_few_points_carried_off_together():
     np.testing.assert_allclose(robust_procrustes(rest, seen, weights, scale=0.1), truth, atol=1e-12)
 
 
-def test_robust_stretch_undoes_a_depth_squash_along_its_own_direction_only():
-    """Points squashed 4% along a slanted direction about an off-centre point, and shifted along it: the
-    stretch found brings them back exactly, moving them along that direction and no other; a few points
-    carried 5 mm along it pull the fit less than a tenth as far as a plain least squares would."""
+def test_robust_depth_affine_undoes_a_squashed_tilted_depth_along_its_own_direction_only():
+    """Points squashed 4% along a slanted direction about an off-centre point, tilted along it by their
+    place across it and shifted along it: the map found brings them back exactly, moving them along that
+    direction and no other; a few points carried 5 mm along it pull the fit less than a tenth as far as a
+    plain least squares would."""
     rng = np.random.default_rng(5)
     rest = rng.normal(size=(30, 3)) * 3.0
     u = np.array([0.3, -0.2, 1.0]) / np.linalg.norm([0.3, -0.2, 1.0])
-    along = (rest - [1.0, 0.5, -2.0]) @ u
-    squashed = rest + (-0.04 * along + 0.3)[:, None] * u
-    M = robust_stretch(rest, squashed[None], np.ones(30), u[None], scale=0.05)[0]
-    np.testing.assert_allclose(squashed @ M[:3, :3].T + M[:3, 3], rest, atol=1e-12)
-    moved = (squashed @ M[:3, :3].T + M[:3, 3]) - squashed
+    across = np.cross(u, [0.0, 1.0, 0.0])
+    offset = rest - [1.0, 0.5, -2.0]
+    seen = rest + (-0.04 * (offset @ u) + 0.05 * (offset @ across) + 0.3)[:, None] * u
+    M = robust_depth_affine(rest, seen[None], np.ones(30), u[None], scale=0.05)[0]
+    np.testing.assert_allclose(seen @ M[:3, :3].T + M[:3, 3], rest, atol=1e-12)
+    moved = (seen @ M[:3, :3].T + M[:3, 3]) - seen
     np.testing.assert_allclose(np.cross(moved, u), 0.0, atol=1e-12)  # along u only
-    carried = squashed.copy()
+    carried = seen.copy()
     carried[:4] += 0.5 * u
-    plain = robust_stretch(rest, carried[None], np.ones(30), u[None], scale=np.inf)[0]
-    robust = robust_stretch(rest, carried[None], np.ones(30), u[None], scale=0.05)[0]
+    plain = robust_depth_affine(rest, carried[None], np.ones(30), u[None], scale=np.inf)[0]
+    robust = robust_depth_affine(rest, carried[None], np.ones(30), u[None], scale=0.05)[0]
 
     def miss(m):
-        return np.abs((squashed[4:] @ m[:3, :3].T + m[:3, 3]) - rest[4:]).max()
+        return np.abs((seen[4:] @ m[:3, :3].T + m[:3, 3]) - rest[4:]).max()
     assert miss(plain) > 1e-2 and miss(robust) < 0.1 * miss(plain)
+
+
+def test_robust_depth_affine_without_the_tilt_undoes_a_squash_and_leaves_a_tilt():
+    """``tilt=False`` fits the stretch and the shift alone: a squash along u comes back exactly; a tilt
+    along u (the depth rising with the place across it) does not."""
+    rng = np.random.default_rng(6)
+    rest = rng.normal(size=(30, 3)) * 3.0
+    u = np.array([0.0, 0.0, 1.0])
+    squashed = rest + (-0.04 * rest[:, 2] + 0.3)[:, None] * u
+    M = robust_depth_affine(rest, squashed[None], np.ones(30), u[None], scale=0.05, tilt=False)[0]
+    np.testing.assert_allclose(squashed @ M[:3, :3].T + M[:3, 3], rest, atol=1e-12)
+    tilted = rest + (0.05 * rest[:, 1])[:, None] * u
+    M = robust_depth_affine(rest, tilted[None], np.ones(30), u[None], scale=np.inf, tilt=False)[0]
+    assert np.abs(tilted @ M[:3, :3].T + M[:3, 3] - rest).max() > 0.1
+
+
+def test_robust_depth_affine_takes_each_frame_along_its_own_direction():
+    """Two frames, each tilted along its own line of sight: each comes back, and a frame already in place
+    is left exactly where it is."""
+    rng = np.random.default_rng(8)
+    rest = rng.normal(size=(25, 3)) * 2.0
+    directions = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
+    tilted = rest + (0.06 * rest[:, 1] - 0.1)[:, None] * directions[1]
+    M = robust_depth_affine(rest, np.stack([rest, tilted]), np.ones(25), directions, scale=0.05)
+    np.testing.assert_allclose(M[0], np.eye(4), atol=1e-12)
+    np.testing.assert_allclose(tilted @ M[1, :3, :3].T + M[1, :3, 3], rest, atol=1e-12)
 
 
 def test_landmark_maps_respect_sides_and_symmetry():

@@ -6,7 +6,7 @@ import numpy as np
 
 from ..validation import as_array
 
-__all__ = ["weighted_procrustes", "batch_procrustes", "robust_procrustes", "robust_stretch"]
+__all__ = ["weighted_procrustes", "batch_procrustes", "robust_procrustes", "robust_depth_affine"]
 
 
 def weighted_procrustes(source, target, weights=None, *, scale: bool = True) -> np.ndarray:
@@ -105,40 +105,56 @@ def robust_procrustes(source, targets, weights, *, scale: float, rounds: int = 5
     return batch_procrustes(source, targets, w)
 
 
-def robust_stretch(source, targets, weights, directions, *, scale: float, rounds: int = 5) -> np.ndarray:
-    """The stretch along each frame's unit ``directions (T, 3)`` that best brings ``targets (T, N, 3)``
-    onto ``source (N, 3)``: ``(T, 4, 4)`` affine maps, target onto source.
+def robust_depth_affine(source, targets, weights, directions, *, scale: float, tilt: bool = True,
+                        rounds: int = 5) -> np.ndarray:
+    """The map along each frame's unit ``directions (T, 3)`` that best brings ``targets (T, N, 3)`` onto
+    ``source (N, 3)``, moving points along that direction only, by an affine function of where they are:
+    ``(T, 4, 4)`` affine maps, target onto source.
 
-    Per frame, the coordinate along ``u`` about the source's weighted centre ``c`` is fitted as
-    ``(source - c) . u = g (target - c) . u + b`` (a gain and a shift, weighted least squares); the
-    map moves a point along ``u`` only, by what the fit says, and leaves the other two directions as
-    they are. Reweighted as :func:`robust_procrustes` (Cauchy's weight at ``scale``), so points an
-    expression carries off count less. ``weights (N,)`` are non-negative, with points of more than one
-    depth along each ``u``; inputs are trusted (checked by the caller).
+    Per frame, with ``u`` the direction, ``e1``, ``e2`` two unit directions across it and ``c`` the
+    source's weighted centre, the coordinate along ``u`` is fitted (weighted least squares) as
+    ``(source - c) . u = g (target - c) . u + a1 (target - c) . e1 + a2 (target - c) . e2 + b``: a gain
+    (a stretch along ``u``), a shear along ``u`` by the position across it (a depth that tilts), and a
+    shift; with ``tilt=False``, the stretch and the shift only (``a1 = a2 = 0``). The map leaves the two
+    directions across ``u`` as they are, so a camera looking along ``u`` sees no change. Reweighted as
+    :func:`robust_procrustes` (Cauchy's weight at ``scale``), so points an expression carries off count
+    less. ``weights (N,)`` are non-negative, with points spread in all three directions (along ``u``
+    only, without the tilt); inputs are trusted (checked by the caller).
 
     >>> rng = np.random.default_rng(1)
     >>> p = rng.normal(size=(20, 3))
-    >>> squashed = p * [1, 1, 0.97] + [0, 0, 0.2]
-    >>> M = robust_stretch(p, squashed[None], np.ones(20), np.array([[0, 0, 1.0]]), scale=0.1)
-    >>> bool(np.allclose(squashed @ M[0, :3, :3].T + M[0, :3, 3], p))
+    >>> tilted = p + [0, 0, 0.2] + np.outer(-0.03 * p[:, 2] + 0.05 * p[:, 1], [0, 0, 1])
+    >>> M = robust_depth_affine(p, tilted[None], np.ones(20), np.array([[0, 0, 1.0]]), scale=0.1)
+    >>> bool(np.allclose(tilted @ M[0, :3, :3].T + M[0, :3, 3], p))
     True
     """
     targets = np.asarray(targets, dtype=np.float64)
     w0 = np.asarray(weights, dtype=np.float64)
     u = np.asarray(directions, dtype=np.float64)
     centre = (w0 @ source) / w0.sum()
-    along = np.matmul(targets - centre, u[:, :, None])[..., 0]
-    wanted = u @ (source - centre).T
-    w = np.broadcast_to(w0, along.shape)
+    helper = np.where(np.abs(u[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])  # not along u
+    e1 = np.cross(u, helper)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(u, e1)
+    axes = np.stack([u, e1, e2], axis=1)  # (T, 3, 3): rows u, e1, e2
+    coords = np.matmul(targets - centre, axes.transpose(0, 2, 1))  # (T, N, 3): along u, e1, e2
+    design = np.concatenate([coords, np.ones(coords.shape[:2] + (1,))], axis=2)  # (T, N, 4)
+    used = [0, 1, 2, 3] if tilt else [0, 3]
+    wanted = u @ (source - centre).T  # (T, N)
+    w = np.broadcast_to(w0, wanted.shape)
+    fit = np.zeros((len(targets), 4))
     for _ in range(rounds + 1):
-        sw, sx, sy = w.sum(axis=1), (w * along).sum(axis=1), (w * wanted).sum(axis=1)
-        sxx, sxy = (w * along * along).sum(axis=1), (w * along * wanted).sum(axis=1)
-        gain = (sw * sxy - sx * sy) / (sw * sxx - sx * sx)
-        shift = (sy - gain * sx) / sw
-        moved = (gain[:, None] - 1.0) * along + shift[:, None]  # how far each point goes along u
+        columns = design[..., used]
+        weighted = columns * w[..., None]
+        normal = np.matmul(columns.transpose(0, 2, 1), weighted)
+        fit[:, used] = np.linalg.solve(normal, np.matmul(weighted.transpose(0, 2, 1), wanted[..., None]))[..., 0]
+        moved = np.einsum("tnk,tk->tn", design, fit) - coords[..., 0]  # how far each point goes along u
         r = np.linalg.norm(targets + moved[..., None] * u[:, None, :] - source, axis=-1)
         w = w0 / (1.0 + (r / scale) ** 2)
+    # the point x goes to x + u [(g - 1) u + a1 e1 + a2 e2] . (x - c) + b u
+    row = fit[:, :3] - np.array([1.0, 0.0, 0.0])
+    linear = np.einsum("ti,tj->tij", u, np.einsum("tk,tkj->tj", row, axes))
     M = np.tile(np.eye(4), (len(targets), 1, 1))
-    M[:, :3, :3] += (gain - 1.0)[:, None, None] * np.einsum("ti,tj->tij", u, u)
-    M[:, :3, 3] = (shift - (gain - 1.0) * (u @ centre))[:, None] * u
+    M[:, :3, :3] += linear
+    M[:, :3, 3] = fit[:, 3:] * u - np.einsum("tij,j->ti", linear, centre)
     return M
