@@ -127,15 +127,17 @@ def test_robust_depth_affine_without_the_tilt_undoes_a_squash_and_leaves_a_tilt(
 
 
 def test_robust_depth_affine_takes_each_frame_along_its_own_direction():
-    """Two frames, each tilted along its own line of sight: each comes back, and a frame already in place
-    is left exactly where it is."""
+    """Frames each tilted along its own line of sight (one of them along x, where the directions across it
+    are made another way): each comes back, and a frame already in place is left exactly where it is."""
     rng = np.random.default_rng(8)
     rest = rng.normal(size=(25, 3)) * 2.0
-    directions = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
+    directions = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [-1.0, 0.0, 0.0]])  # the last: along x
     tilted = rest + (0.06 * rest[:, 1] - 0.1)[:, None] * directions[1]
-    M = robust_depth_affine(rest, np.stack([rest, tilted]), np.ones(25), directions, scale=0.05)
+    sideways = rest + (0.05 * rest[:, 2] - 0.03 * rest[:, 0] + 0.2)[:, None] * directions[2]
+    M = robust_depth_affine(rest, np.stack([rest, tilted, sideways]), np.ones(25), directions, scale=0.05)
     np.testing.assert_allclose(M[0], np.eye(4), atol=1e-12)
     np.testing.assert_allclose(tilted @ M[1, :3, :3].T + M[1, :3, 3], rest, atol=1e-12)
+    np.testing.assert_allclose(sideways @ M[2, :3, :3].T + M[2, :3, 3], rest, atol=1e-12)
 
 
 def test_landmark_maps_respect_sides_and_symmetry():

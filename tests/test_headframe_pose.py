@@ -83,10 +83,10 @@ def test_a_depth_the_tracker_breathes_along_the_line_of_sight_is_taken_out(rest,
     before = seen @ pose[1, :3, :3].T + pose[1, :3, 3]
     after = points[1] @ new_pose[1, :3, :3].T + new_pose[1, :3, 3]
     assert np.abs((after - before)[:, :2]).max() < 0.01
-    assert stretched < 0.025  # cm, over every point (the similarity and the stretch fitted in turn twice)
-    def no_stretch(source, targets, *args, **kwargs):
+    assert stretched < 0.025  # cm, over every point (the similarity and the depth's map fitted in turn twice)
+    def no_depth_map(source, targets, *args, **kwargs):
         return np.tile(np.eye(4), (len(targets), 1, 1))
-    monkeypatch.setattr(headframe, "robust_depth_affine", no_stretch)
+    monkeypatch.setattr(headframe, "robust_depth_affine", no_depth_map)
     alone, _ = restabilise(np.stack([rest, seen]), pose, rest, np.ones(2, bool))
     assert np.abs(alone[1] - face).max() > 4 * stretched
 

@@ -118,8 +118,9 @@ def robust_depth_affine(source, targets, weights, directions, *, scale: float, t
     shift; with ``tilt=False``, the stretch and the shift only (``a1 = a2 = 0``). The map leaves the two
     directions across ``u`` as they are, so a camera looking along ``u`` sees no change. Reweighted as
     :func:`robust_procrustes` (Cauchy's weight at ``scale``), so points an expression carries off count
-    less. ``weights (N,)`` are non-negative, with points spread in all three directions (along ``u``
-    only, without the tilt); inputs are trusted (checked by the caller).
+    less. ``weights (N,)`` are non-negative; the weighted points must not all lie in one plane (with
+    ``tilt=False``: not all at one depth along ``u``), or the frame's fit is singular and
+    ``numpy.linalg.LinAlgError`` is raised for the whole batch. Inputs are trusted (checked by the caller).
 
     >>> rng = np.random.default_rng(1)
     >>> p = rng.normal(size=(20, 3))
@@ -143,11 +144,13 @@ def robust_depth_affine(source, targets, weights, directions, *, scale: float, t
     wanted = u @ (source - centre).T  # (T, N)
     w = np.broadcast_to(w0, wanted.shape)
     fit = np.zeros((len(targets), 4))
-    for _ in range(rounds + 1):
-        columns = design[..., used]
+    columns = design[..., used]
+    for round_ in range(rounds + 1):  # a plain fit, then ``rounds`` fits reweighted by the last one's misses
         weighted = columns * w[..., None]
         normal = np.matmul(columns.transpose(0, 2, 1), weighted)
         fit[:, used] = np.linalg.solve(normal, np.matmul(weighted.transpose(0, 2, 1), wanted[..., None]))[..., 0]
+        if round_ == rounds:
+            break
         moved = np.einsum("tnk,tk->tn", design, fit) - coords[..., 0]  # how far each point goes along u
         r = np.linalg.norm(targets + moved[..., None] * u[:, None, :] - source, axis=-1)
         w = w0 / (1.0 + (r / scale) ** 2)
