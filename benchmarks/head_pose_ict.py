@@ -265,7 +265,7 @@ def main(argv=None) -> int:
     table = None if args.tried is None else json.loads(args.tried.read_text())
     variants = VARIANTS + (TRIED if table is not None else ())
     model = load_ict()
-    frames_of = list(R._segment_frames(R.script(model), model))
+    frames_of = list(R.segment_frames(R.script(model), model))
     lines = ["# The head pose on renders of a still head (issues 16 and 17)", "",
              f"`python benchmarks/head_pose_ict.py --tuning {args.tuning} --reporting {args.reporting}"
              + (f" --tried {args.tried}" if table is not None else "") + "`: "

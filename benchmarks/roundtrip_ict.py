@@ -116,11 +116,11 @@ SEGMENTS = (("jawOpen", ("jawOpen",)), ("smile", ("mouthSmile_L", "mouthSmile_R"
                                                                    "browOuterUp_L", "browOuterUp_R")))
 
 
-def script(model, rest=10, length=30):
-    """(T, 53) expression weights: rest, then each segment eased 0 -> 1 -> 0."""
+def script(model, rest=10, length=30, segments=SEGMENTS):
+    """(T, 53) expression weights: rest, then each of ``segments`` eased 0 -> 1 -> 0."""
     ease = np.sin(np.linspace(0, np.pi, length)) ** 2
     weights = [np.zeros((rest, len(model.expression_names)))]
-    for _, names in SEGMENTS:
+    for _, names in segments:
         w = np.zeros((length, len(model.expression_names)))
         for name in names:
             w[:, model.expression_names.index(name)] = ease
@@ -203,7 +203,7 @@ def segment_table(out, truth, rest, weights, model) -> tuple[list[str], float]:
              "| error at best gain |",
              "|---|---|---|---|---|---|---|"]
     all_errors = []
-    for (name, _), frames in zip(SEGMENTS, _segment_frames(weights, model), strict=True):
+    for (name, _), frames in zip(SEGMENTS, segment_frames(weights, model), strict=True):
         err = relative_error(out[frames], truth[frames], rest)
         all_errors.append(err)
         size = np.sqrt(((truth[frames] - rest) ** 2).sum(-1).mean())
@@ -228,7 +228,7 @@ def many_pairs(first: int, count: int) -> int:
     label, skin, via = RUNS[0]
     segments = [name for name, _ in SEGMENTS]
     lower_teeth = _lower_teeth(model)
-    jaw_frames = next(_segment_frames(weights, model))
+    jaw_frames = next(segment_frames(weights, model))
     rows = ["| seed | tracked: median | tracked: worst 5% of frames | no video: median | no video: worst 5% | "
             + " | ".join(f"tracked {name}" for name in segments) + " | tracked: lower teeth off (cm), jawOpen |",
             "|---|---|---|---|---|" + "---|" * (len(segments) + 1)]
@@ -248,7 +248,7 @@ def many_pairs(first: int, count: int) -> int:
         scores, per_segment = [], []
         for out in (positions, exact):
             per_segment.append([relative_error(out[:, :FACE_VERTICES][frames], truth[frames], rest)
-                                for frames in _segment_frames(weights, model)])
+                                for frames in segment_frames(weights, model)])
             errors = np.concatenate(per_segment[-1])
             scores += [float(np.median(errors)), float(np.percentile(errors, 95))]
         scores += [float(np.median(e)) for e in per_segment[0]]  # the tracked run's, segment by segment
@@ -283,7 +283,7 @@ def _lower_teeth(model) -> np.ndarray:
     return teeth[np.linalg.norm(opening[teeth], axis=1) > 0.1]
 
 
-def _segment_frames(weights, model):
+def segment_frames(weights, model):
     """Per segment of the script, the frames where its expression is at least half on."""
     for _, expressions in SEGMENTS:
         column = model.expression_names.index(expressions[0])

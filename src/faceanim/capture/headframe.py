@@ -13,6 +13,7 @@ from ..geometry.align import robust_depth_affine, robust_procrustes
 from ..landmarks import FEATURE_POINT_LANDMARK, landmark_names
 from ..motion import Motion
 from ..mpeg4 import fapu_from_points
+from .blinkcoupling import BlinkCoupling
 from .blinkslide import BlinkSlide
 from .browscores import BrowDrive
 from .jaw import correct_jaw_depth
@@ -350,6 +351,14 @@ def score_drives(blendshapes, names, times, rest: np.ndarray, fapu, usable: np.n
     return [drive for drive in drives if drive is not None]
 
 
+def blink_coupling(rest: np.ndarray, fapu) -> list:
+    """The drive that needs no scores, applied after the scores' drives: what the tracker moves with a
+    blink that the face does not, taken out (:class:`~.blinkcoupling.BlinkCoupling`); empty for a
+    layout without MediaPipe's face mesh."""
+    coupling = BlinkCoupling.of_face(rest, fapu)
+    return [] if coupling is None else [coupling]
+
+
 def displacements_from(points: np.ndarray, rest: np.ndarray, usable: np.ndarray) -> np.ndarray:
     """Head-frame ``points (t, L, 3)`` (changed in place) as displacements from ``rest``: NaN on frames
     without a face, the jaw's points given the depth the chin's drop implies (:func:`.jaw.correct_jaw_depth`),
@@ -380,8 +389,8 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
     scores : bool
         Brow heights from the tracker's blendshape scores where the track has them
         (:mod:`.browscores`), and the eyes' sideways slide in a blink taken out (:mod:`.blinkslide`);
-        False keeps the tracked movement (the lid skin's and the jaw's corrections, which need no
-        scores, still apply).
+        False keeps the tracked movement (the lid skin's and the jaw's corrections and the blink's
+        coupling taken out, :mod:`.blinkcoupling`, need no scores and still apply).
     """
     usable = track.usable
     # One (T, L, 3) array, made here and then changed in place, step by step: a long video's
@@ -392,9 +401,9 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
     window = rest_window(points, usable, track.fps, neutral, neutral_points)
     rest, fapu = settle(points, pose, usable, track.fps, neutral=window, neutral_points=neutral_points)
     displacements = displacements_from(points, rest, usable)
-    if scores:
-        for drive in score_drives(track.blendshapes, track.blendshape_names, track.times, rest, fapu, usable,
-                                  window, smoothing):
-            drive.apply(displacements, 0)
+    drives = score_drives(track.blendshapes, track.blendshape_names, track.times, rest, fapu, usable, window,
+                          smoothing) if scores else []
+    for drive in drives + blink_coupling(rest, fapu):
+        drive.apply(displacements, 0)
     displacements.flags.writeable = False  # handed over: the Motion takes it uncopied
     return Motion(landmark_names(len(rest)), rest, displacements, pose, track.fps, fapu, valid=usable)

@@ -22,6 +22,7 @@ from ..landmarks import landmark_names
 from ..motion import Motion
 from .headframe import (
     DEFAULT_SMOOTHING,
+    blink_coupling,
     displacements_from,
     head_frame_into,
     rest_window,
@@ -126,6 +127,7 @@ def captured(source, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTH
     window = rest_window(points, usable, fps, neutral, neutral_points)
     rest, fapu = settle(points, pose, usable, fps, neutral=window, neutral_points=neutral_points)
     drives = score_drives(blendshapes, names, times, rest, fapu, usable, window, smoothing) if scores else []
+    drives += blink_coupling(rest, fapu)
 
     def frames(start: int, stop: int) -> np.ndarray:
         moved = displacements_from(points[start:stop], rest, usable[start:stop])
