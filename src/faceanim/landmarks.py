@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from types import MappingProxyType
 
-__all__ = ["FEATURE_POINT_LANDMARK", "IBUG68_LANDMARK", "LIP_OUTER", "LIP_INNER", "landmark_names"]
+__all__ = ["EYE_LIDS", "FEATURE_POINT_LANDMARK", "IBUG68_LANDMARK", "LIP_OUTER", "LIP_INNER", "landmark_names"]
 
 FEATURE_POINT_LANDMARK: Mapping[str, int] = MappingProxyType({  # read-only: a shared table
     # chin and inner lips
@@ -55,6 +55,13 @@ IBUG68_LANDMARK: tuple[int, ...] = (
     61, 39, 37, 0, 267, 269, 291, 405, 314, 17, 84, 181,
     78, 82, 13, 312, 308, 317, 14, 87,
 )
+
+# Each eye's lids, upper over lower, facing point by point from the outer corner to the inner (the corners
+# themselves are not pairs): MediaPipe's eye contours, MPEG-4's 3.1 over 3.3 and 3.2 over 3.4 among them.
+EYE_LIDS: Mapping[str, tuple[tuple[int, ...], tuple[int, ...]]] = MappingProxyType({
+    "left": ((466, 388, 387, 386, 385, 384, 398), (249, 390, 373, 374, 380, 381, 382)),
+    "right": ((246, 161, 160, 159, 158, 157, 173), (7, 163, 144, 145, 153, 154, 155)),
+})
 
 # The lips' outer and inner contours (the inner one is the mouth opening), each closed and in order
 # around the mouth: from the subject's right corner over the upper lip, then back along the lower lip.

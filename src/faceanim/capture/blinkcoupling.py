@@ -29,6 +29,7 @@ from importlib import resources
 
 import numpy as np
 
+from ..landmarks import EYE_LIDS
 from ..validation import as_array
 
 __all__ = ["BlinkCoupling", "MIDDLE_LIDS", "OPEN_BELOW", "closure", "coupling_field", "shutting"]
@@ -40,6 +41,7 @@ _FACE_MESH = 468  # the field covers MediaPipe's face mesh; the irises move with
 #: percentile on the shared videos unfiltered), and the jitter taken only when it closes would move the
 #: face on average: d0's neutral frames then missed the rest by 0.006 cm (tests/test_animate_cli.py).
 OPEN_BELOW = 0.1
+_LID_PAIRS = tuple(pair for upper, lower in EYE_LIDS.values() for pair in zip(upper, lower, strict=True))
 
 
 @functools.cache
@@ -107,5 +109,26 @@ class BlinkCoupling:
         eyes' closure couples to it; returned. ``start`` is unused (the closure is read from the frames
         themselves); it is there so the capture applies this like its other drives."""
         shut = np.nan_to_num(shutting(closure(displacements, self.neutral)), nan=0.0)
-        displacements[:, :_FACE_MESH] -= self.es0 * np.einsum("tk,klc->tlc", shut, self.field)
+        move = self.es0 * np.einsum("tk,klc->tlc", shut, self.field)
+        self._lids_held_where_they_meet(displacements, move)
+        displacements[:, :_FACE_MESH] -= move
         return displacements
+
+    def _lids_held_where_they_meet(self, displacements, move) -> None:
+        """``move (t, 468, 3)`` changed in place: on each facing pair of lid points whose taking out would
+        bring the lids past each other, its height taken back on both, in proportion, to where they
+        meet (or to where the tracker had them, if it had them past each other already).
+
+        The table is fitted on ICT identities some of whose eyes the tracker hardly sees shut (tall
+        eyes half shut by ICT's blink, read as 0.1-0.2 of it), so at a lid it asks for more than a
+        shut eye can give: on the shared videos' fullest blinks the lids passed each other by 0.2-0.6
+        of the eye's opening. A target's lids are held where they meet anyway (:mod:`faceanim.retarget.lids`);
+        the motion, its FAPs and its exports are held here."""
+        for upper, lower in _LID_PAIRS:
+            top, bottom = self.neutral[upper, 1], self.neutral[lower, 1]
+            allowed = np.maximum((top + displacements[:, upper, 1]) - (bottom + displacements[:, lower, 1]), 0.0)
+            closing = move[:, upper, 1] - move[:, lower, 1]  # how much nearer the move brings the two
+            over = closing > allowed
+            share = np.where(over, allowed / np.where(over, closing, 1.0), 1.0)
+            move[:, upper, 1] *= share
+            move[:, lower, 1] *= share

@@ -28,18 +28,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..landmarks import landmark_names
+from ..landmarks import EYE_LIDS, landmark_names
 
 __all__ = ["LID_PAIRS", "MOST", "LidOpenings"]
 
-# MediaPipe's eye contours, upper lid over lower lid, outer corner to inner (the corners themselves
-# are not pairs).
-_UPPER = {"left": (466, 388, 387, 386, 385, 384, 398), "right": (246, 161, 160, 159, 158, 157, 173)}
-_LOWER = {"left": (249, 390, 373, 374, 380, 381, 382), "right": (7, 163, 144, 145, 153, 154, 155)}
 _NAMES = landmark_names(478)
 #: Facing lid points, (upper, lower), by the names a Motion gives them ("3.1" over "3.3" ...).
-LID_PAIRS = tuple((_NAMES[u], _NAMES[lo]) for side in ("left", "right") for u, lo in zip(_UPPER[side], _LOWER[side],
-                                                                                         strict=True))
+LID_PAIRS = tuple((_NAMES[u], _NAMES[lo]) for upper, lower in EYE_LIDS.values() for u, lo in zip(upper, lower,
+                                                                                                strict=True))
 MOST = 2.0  # a target's opening at most this many times the source's (or this many times smaller) counts
 
 
