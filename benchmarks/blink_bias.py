@@ -62,6 +62,7 @@ def without_table():
 
 
 def with_table(table):
+    """The capture with ``table`` in place of the packaged one (the round trip's run with it)."""
     blinkcoupling.coupling_field = lambda: table
 
 
