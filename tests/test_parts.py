@@ -31,12 +31,28 @@ def ict():
     return target, face_parts(target)
 
 
+@pytest.fixture(scope="module")
+def ict_lined(ict):
+    """ICT's parts with its mouth's inside kept as skin, one surface with the lips (as on a head whose
+    bag is not cut off at the lips' inner rims): the lips' lining then reaches the teeth, which is what
+    the teeth's contact is for. As ICT's own parts are found, the inside is a socket (faceanim.parts.mouth)."""
+    from unittest import mock
+
+    target, _ = ict
+    with mock.patch("faceanim.parts.mouth_inside", lambda mesh, *_: np.zeros(len(mesh.vertices), dtype=bool)):
+        return target, face_parts(target)
+
+
 def test_ict_parts_follow_its_own_part_table(ict):
     _, parts = ict
     assert (parts.role[ICT_UPPER_TEETH] == 1).all() and (parts.role[ICT_LOWER_TEETH] == 2).all()
     assert (parts.jaw_weight[ICT_UPPER_TEETH] == 0).all() and (parts.jaw_weight[ICT_LOWER_TEETH] == 1).all()
     assert parts.mask("eye_left")[ICT_EYES[0]].all() and parts.mask("eye_right")[ICT_EYES[1]].all()
-    assert parts.mask("lid_layer")[ICT_LID_LAYERS].all() and parts.mask("skin")[ICT_FACE].all()
+    assert parts.mask("lid_layer")[ICT_LID_LAYERS].all()
+    # The face is skin but for its mouth's inside, cut off behind the lips' inner rims (faceanim.parts.mouth).
+    face = np.zeros(len(parts.role), dtype=bool)
+    face[ICT_FACE] = True
+    assert parts.mask("skin", "socket")[face].all() and 0 < parts.mask("socket")[face].sum() < 0.1 * face.sum()
     # The eyeballs are spheres: their centres are fitted, each behind its own eye, mirrored.
     left, right = parts.eye_centres
     assert left[0] > 0 > right[0] and abs(left[0] + right[0]) < 0.05 and abs(left[1] - right[1]) < 0.05
@@ -231,12 +247,12 @@ def test_decode_takes_a_parts_file_and_refuses_a_bad_one_before_any_work(tmp_pat
     assert not out.exists()
 
 
-def test_lips_pressed_into_the_teeth_are_kept_in_front_of_them(ict):
+def test_lips_pressed_into_the_teeth_are_kept_in_front_of_them(ict_lined):
     """The lower lip's inner rim driven 1.2 cm straight back (into the lower incisors) stays in front
     of the teeth: measured with the exact signed distance of geometry.quality, not the deformer's own."""
     from faceanim.geometry.quality import penetration_depth
 
-    target, parts = ict
+    target, parts = ict_lined
     names = [n for n in target.points if not n.startswith("mp")]
     ids = np.unique(target.ids(names))
     pressed = np.zeros((2, len(ids), 3))
@@ -279,7 +295,7 @@ def test_frames_in_chunks_give_what_all_frames_at_once_give(ict):
 
 
 
-def test_a_wide_opening_leaves_the_upper_lip_where_its_controls_are(ict):
+def test_a_wide_opening_leaves_the_upper_lip_where_its_controls_are(ict_lined):
     """The jaw opens 26 degrees and every control follows it by the parts' weight, so the upper lip's
     controls stay put. The skin of the upper lip stays within 2 mm of rest. (Turned by the weight
     raised against folding, as it once was, it sagged 1 cm between its controls: a curtain over the
@@ -288,7 +304,7 @@ def test_a_wide_opening_leaves_the_upper_lip_where_its_controls_are(ict):
 
     from faceanim.parts.faceparts import _UPPER_LIP
 
-    target, parts = ict
+    target, parts = ict_lined
     rest = target.mesh.vertices
     ids = np.unique(target.ids([n for n in target.points if not n.startswith("mp")]))
     deformer = PartsDeformer(target, parts, ids)
@@ -303,7 +319,7 @@ def test_a_wide_opening_leaves_the_upper_lip_where_its_controls_are(ict):
     assert np.linalg.norm(moved[lip] - rest[lip], axis=1).max() < 0.2
 
 
-def test_lips_squeezed_into_the_teeth_leave_no_skin_triangle_turned_over(ict, monkeypatch):
+def test_lips_squeezed_into_the_teeth_leave_no_skin_triangle_turned_over(ict_lined, monkeypatch):
     """Lip controls pushed 0.4 cm back into the teeth, with noise, while the jaw closes past rest: the
     pushes out of the upper and lower teeth disagree at the corners. The deformer leaves no skin
     triangle turned over, with the teeth cover or by the pushes alone; with the pins held (not
@@ -313,7 +329,7 @@ def test_lips_squeezed_into_the_teeth_leave_no_skin_triangle_turned_over(ict, mo
     import faceanim.geometry.relax as relax
     from faceanim.parts import INNER_LIP_POINTS
 
-    target, parts = ict
+    target, parts = ict_lined
     rest = target.mesh.vertices
     ids = np.unique(target.ids(list(target.points)))
     deformer = PartsDeformer(target, parts, ids)
@@ -499,7 +515,7 @@ def test_the_teeth_contact_leaves_no_lip_vertex_deeper_than_at_rest_whatever_it_
     np.testing.assert_array_equal(limited[~among], before[~among])
 
 
-def test_an_eased_push_carries_each_push_onto_the_skin_around_it_and_leaves_no_lip_in(ict):
+def test_an_eased_push_carries_each_push_onto_the_skin_around_it_and_leaves_no_lip_in(ict_lined):
     """The lips pressed 0.3 cm into the teeth (a smooth dent about the lips' middle). Pushed out one
     vertex at a time, neighbours along an edge end up to the whole push apart; eased, the push is
     carried onto the skin within the radius (nothing beyond it moves), no lip vertex stays in, and
@@ -509,7 +525,7 @@ def test_an_eased_push_carries_each_push_onto_the_skin_around_it_and_leaves_no_l
     from faceanim.geometry.topology import submesh
     from faceanim.retarget.contact import TeethContact
 
-    target, parts = ict
+    target, parts = ict_lined
     skin = parts.mask("skin")
     skin_ids = np.flatnonzero(skin)
     contact = TeethContact(target, parts, skin_ids)

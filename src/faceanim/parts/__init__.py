@@ -37,6 +37,7 @@ from .faceparts import _ROLE, INNER_LIP_POINTS, ROLES, FaceParts
 from .frame import _FRAME_POINTS, _Frame, _smoothstep, face_axes
 from .jaw import _skin_jaw_weight
 from .labels import _vertex_hints, read_parts_file
+from .mouth import mouth_inside
 from .pieces import _eye_centre, _roles, _skin_only
 from .teeth import _centre_behind_the_teeth, _fitted_bite, _split_teeth, _teeth_pieces
 
@@ -62,6 +63,7 @@ def face_parts(target: Target, *, labels: dict | None = None, source: str = "") 
     frame = _Frame(axes, at, target)
     hint = _vertex_hints(mesh, labels, where)
     role, kind = _roles(mesh, target, frame, hint, where)
+    role[mouth_inside(mesh, role == _ROLE["skin"], target, axes[2])] = _ROLE["socket"]
     eye_centres = np.stack([_eye_centre(mesh, role == _ROLE[side], frame, side) for side in ("eye_left", "eye_right")])
     jaw = np.zeros(len(mesh.vertices))
     # The frame's bite and turning centre start from the feature points; the teeth, where there are
@@ -76,10 +78,18 @@ def face_parts(target: Target, *, labels: dict | None = None, source: str = "") 
         frame.move_centre(centre)
     split = kind == "split"
     if split.any():  # the tongue's root, behind the turning centre, hangs from the skull, not the jaw
-        depth = frame.local(mesh.vertices[split])[:, 2] - frame.hinge_local[2]
-        jaw[split] *= _smoothstep(depth / (0.2 * frame.mouth_width))
+        jaw[split] *= _in_front_of_centre(mesh.vertices[split], frame)
     skin = role == _ROLE["skin"]
     jaw[skin] = _skin_jaw_weight(mesh, skin, frame, target)
     socket = role == _ROLE["socket"]
-    jaw[socket] = frame.below_bite(mesh.vertices[socket])
+    # A socket's floor goes with the jaw, as far back as the turning centre (a bag that runs on into the
+    # throat hangs from the skull there, as the tongue's root does).
+    jaw[socket] = frame.below_bite(mesh.vertices[socket]) * _in_front_of_centre(mesh.vertices[socket], frame)
     return FaceParts(role, np.clip(jaw, 0.0, 1.0), frame.hinge, axes, eye_centres)
+
+
+def _in_front_of_centre(points: np.ndarray, frame: _Frame) -> np.ndarray:
+    """``(N,)`` 1 in front of the jaw's turning centre, 0 behind it, a smooth step of a fifth of the
+    mouth's width between."""
+    depth = frame.local(points)[:, 2] - frame.hinge_local[2]
+    return _smoothstep(depth / (0.2 * frame.mouth_width))

@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..geometry.mesh import Mesh
@@ -109,6 +110,8 @@ class PartsDeformer:
         lip = target.points.get("8.2")
         self._under_lips = (None if lip is None
                             else skin & ((mesh.vertices - mesh.vertices[lip]) @ parts.axes[1] < 0.0))
+        corners = [target.points[n] for n in ("8.3", "8.4") if n in target.points]
+        self._mouth_width = float(np.linalg.norm(np.subtract(*mesh.vertices[corners]))) if len(corners) == 2 else 0.0
         self._bind_riders(mesh, skin_mesh)
         self.contact = TeethContact(target, parts, skin_ids)
         self.cover = TeethCover(target, parts, skin_ids)
@@ -129,21 +132,37 @@ class PartsDeformer:
         corners, bary = hit.corner_vertices, hit.barycentric
         rims = np.flatnonzero(socket & rim)
         if len(rims):
-            # A socket's rim copies the opening's edge, set back and widened: it rides on the edge
-            # vertex it copies (the nearest across the face), not on whatever skin is nearest in space.
+            # A separate socket's rim copies the opening's edge, set back and widened: it rides on the
+            # edge vertex it copies (the nearest across the face), not on whatever skin is nearest in
+            # space. A rim joined to the skin (the mouth's inside cut off from the lips, see
+            # faceanim.parts.mouth) rides on the skin vertex it is joined to: across the face, the upper
+            # lip's lining lies nearer the lower lip's edge than the upper's on some heads.
             edge = np.unique(open_edges(skin_mesh.triangles))
             across = self.parts.axes[:2]
             gap = ((mesh.vertices[rims] @ across.T)[:, None] - (skin_mesh.vertices[edge] @ across.T)[None]) ** 2
             nearest = edge[np.argmin(gap.sum(axis=2), axis=1)]
+            joined = _nearest_neighbour_on(mesh, rims, self.parts.mask("skin"))
+            nearest = np.where(joined >= 0, np.searchsorted(self.skin_ids, joined), nearest)
             corners = np.vstack([corners, np.repeat(nearest[:, None], 3, axis=1)])
             bary = np.vstack([bary, np.tile([1.0, 0.0, 0.0], (len(rims), 1))])
         riders = np.r_[layers, rims]
         self._riders = (riders, corners, bary) if len(riders) else None
+        # Deep inside (further than _GUM_DEPTH of the mouth's width from its rim) a socket is held by
+        # the gums: it turns with the jaw by its weight (faceanim.parts: below the bite and in front of
+        # the turning centre). Between the gums and the rim it hangs, each vertex the mean of its
+        # neighbours. Hung from the rim alone, the upper lip's lining hung from both lips through the
+        # back of the mouth: on ICT's own jawOpen it sagged 0.34 cm (median) below the truth, 0.07 held.
         hanging = np.flatnonzero(socket & ~rim)
         self._hanging = None
         if len(hanging) and rim[socket].any():
-            self._hanging = hanging, np.flatnonzero(socket & rim), _harmonic_fill(
-                socket_triangles, len(mesh.vertices), hanging, np.flatnonzero(socket & rim))
+            deep = np.zeros(len(mesh.vertices), dtype=bool)
+            if self._mouth_width > 0:
+                apart = cKDTree(mesh.vertices[socket & rim]).query(
+                    mesh.vertices[hanging], distance_upper_bound=_GUM_DEPTH * self._mouth_width)[0]
+                deep[hanging[~np.isfinite(apart)]] = True
+            between, held = np.flatnonzero(socket & ~rim & ~deep), np.flatnonzero((socket & rim) | deep)
+            if len(between):
+                self._hanging = between, held, _harmonic_fill(socket_triangles, len(mesh.vertices), between, held)
 
     def jaw_turn(self, angles, vertices=None) -> np.ndarray:
         """``(T, N, 3)`` the ``vertices`` (default: all) turned fully about the hinge by ``angles (T,)``."""
@@ -240,9 +259,9 @@ class PartsDeformer:
         if self._riders is not None:
             riders, corners, bary = self._riders
             moved[:, riders] = np.einsum("nc,tncd->tnd", bary, skin_field[:, corners])
-        if self._hanging is not None:
-            hanging, rim, fill = self._hanging
-            moved[:, hanging] = np.einsum("hr,trd->thd", fill, moved[:, rim])
+        if self._hanging is not None:  # between its rim (riding) and the gums (turned by the jaw above)
+            hanging, held, fill = self._hanging
+            moved[:, hanging] = np.einsum("hr,trd->thd", fill, moved[:, held])
         if eyes is not None:
             eyes = np.asarray(eyes, dtype=np.float64)
             for k, side in enumerate(("eye_left", "eye_right")):
@@ -313,6 +332,7 @@ class PartsDeformer:
         skin_field[again[folding]] = settled[folding]  # every push folds something: no last push
 
 
+_GUM_DEPTH = 0.25  # of the mouth's width: a socket further than this from its rim is held by the gums
 _COVER_RINGS = (2, 4, 8, 16)  # rings around skin the teeth show through that are filled, tried in turn
 _CONTACT_ROUNDS = 4  # pushes out of the teeth and relaxations around them, taken in turn
 # Lip reaches (0.04 of the mouth's width): how far the last push is carried, tried in turn. 4 reaches: d6
@@ -370,6 +390,22 @@ def deform_parts(target: Target, parts: FaceParts | None, control_vertices, disp
                  gaze: FapStream | None = None) -> np.ndarray:
     """``(T, V, 3)`` positions, all at once, of :func:`parts_frames`."""
     return parts_frames(target, parts, control_vertices, displacements, gaze)(0, len(displacements))
+
+
+def _nearest_neighbour_on(mesh: Mesh, vertices: np.ndarray, on: np.ndarray) -> np.ndarray:
+    """``(N,)`` for each of the sorted ``vertices``, the nearest vertex joined to it by an edge among those
+    ``on`` (``(V,) bool``), or -1 where none is."""
+    e = mesh.edges
+    e = np.vstack([e, e[:, ::-1]])
+    e = e[np.isin(e[:, 0], vertices) & on[e[:, 1]]]
+    out = np.full(len(vertices), -1, dtype=np.int64)
+    if not len(e):
+        return out
+    length = np.linalg.norm(mesh.vertices[e[:, 0]] - mesh.vertices[e[:, 1]], axis=1)
+    e = e[np.lexsort((length, e[:, 0]))]  # by vertex, nearest neighbour first
+    first = np.r_[True, e[1:, 0] != e[:-1, 0]]
+    out[np.searchsorted(vertices, e[first, 0])] = e[first, 1]
+    return out
 
 
 def _harmonic_fill(triangles: np.ndarray, count: int, inner, rim) -> np.ndarray:
