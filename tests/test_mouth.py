@@ -13,6 +13,7 @@ from faceanim.parts.mouth import RIM_LOOP, mouth_inside
 from faceanim.target import Target
 
 FORWARD = np.array([0.0, 0.0, 1.0])
+WIDTH = 1.0  # the "mouth's width" on the unit ball: what is cut off must reach 0.2 behind the rims
 
 
 def ringed_ball(height: float, names=RIM_LOOP[::2], *, open_back: bool = False):
@@ -36,31 +37,34 @@ def ringed_ball(height: float, names=RIM_LOOP[::2], *, open_back: bool = False):
 def test_the_skin_cut_off_behind_the_rims_is_the_mouths_inside():
     mesh, target = ringed_ball(-0.5)
     skin = np.ones(len(mesh.vertices), dtype=bool)
-    inside = mouth_inside(mesh, skin, target, FORWARD)
+    inside = mouth_inside(mesh, skin, target, FORWARD, WIDTH)
     z = mesh.vertices[:, 2]
     assert inside.any() and z[inside].max() < -0.5 + 0.1  # behind the ring, up to the loop's zigzag
     assert inside[z < -0.65].all()  # the whole back cap past the loop
     assert not inside[list(target.points.values())].any()  # the rims themselves stay skin
-    # Skin that is not skin (another part) is never taken.
-    partial = skin & (z > -0.8)
-    assert not mouth_inside(mesh, partial, target, FORWARD)[~partial].any()
+    # What is not skin (another part: here the back cap's pole) is never taken; the rest still is.
+    partial = skin & (z > -0.9)
+    inside = mouth_inside(mesh, partial, target, FORWARD, WIDTH)
+    assert inside[(z < -0.65) & partial].all() and not inside[~partial].any()
 
 
-@pytest.mark.parametrize("case", ["in front", "open", "no corner", "few points", "rim off the skin"])
+@pytest.mark.parametrize("case", ["in front", "open", "too large", "no corner", "few points", "rim off the skin"])
 def test_nothing_is_cut_off_where_there_is_no_closed_mouth_behind_the_rims(case):
-    """A ring round the front (what it cuts off lies in front of the lips), a ring round a hole, or a
-    target without both inner corners (2.4, 2.5), with fewer than 6 rim points or with a rim point off
-    the skin: nothing is the mouth's inside."""
+    """A ring round the front (what it cuts off lies in front of the lips), a ring round a hole, a ring
+    round the middle (what it cuts off is as large as the face: no mouth is), or a target without both
+    inner corners (2.4, 2.5), with fewer than 6 rim points or with a rim point off the skin: nothing is
+    the mouth's inside."""
     names = RIM_LOOP[::2]
     if case == "no corner":
         names = tuple(n for n in names if n != "2.4")
     if case == "few points":
         names = ("2.5", "2.7", "2.4", "2.3")
-    mesh, target = ringed_ball(0.5 if case == "in front" else -0.5, names, open_back=case == "open")
+    height = {"in front": 0.5, "too large": -0.05}.get(case, -0.5)
+    mesh, target = ringed_ball(height, names, open_back=case == "open")
     skin = np.ones(len(mesh.vertices), dtype=bool)
     if case == "rim off the skin":
         skin[target.points[names[1]]] = False
-    assert not mouth_inside(mesh, skin, target, FORWARD).any()
+    assert not mouth_inside(mesh, skin, target, FORWARD, WIDTH).any()
 
 
 @pytest.fixture(scope="module")
@@ -123,7 +127,7 @@ def test_the_mouths_inside_hangs_between_the_lips_and_the_gums(ict_own_opening, 
     displacements = np.stack([np.zeros((len(ids), 3)), opening[ids]])
     truth = target.mesh.vertices + opening
     upper_lining = parts.mask("socket") & (np.linalg.norm(opening, axis=1) < 0.6)
-    upper_lining[9409:] = False  # ICT's face; its eye caps (sockets too) lie beyond
+    upper_lining[9409:] = False  # ICT's face; beyond it lies its separate mouth socket
     assert upper_lining.sum() > 50
 
     def off() -> float:
@@ -150,3 +154,26 @@ def test_the_mouths_inside_rides_on_the_lip_it_is_joined_to(ict_own_opening):
     edges = {tuple(e) for e in np.sort(mesh.edges, axis=1).tolist()}
     on = deformer.skin_ids[corners[rims, 0]]
     assert all(tuple(sorted((int(r), int(v)))) in edges for r, v in zip(riders[rims], on, strict=True))
+
+
+def test_the_mouths_inside_turns_with_the_jaw_below_the_bite_and_in_front_of_the_turning_centre(ict_own_opening):
+    """ICT's inside runs on into the throat: the floor of the mouth (below the bite, in front of the
+    jaw's turning centre) has the jaw's full weight, the throat behind the centre none."""
+    target, parts, _ = ict_own_opening
+    inside = parts.mask("socket")
+    depth = (target.mesh.vertices - parts.hinge) @ parts.axes[2]
+    lower_lip = target.mesh.vertices[target.points["2.3"]]
+    below = (lower_lip - target.mesh.vertices) @ parts.axes[1]
+    floor = inside & (np.linalg.norm(target.mesh.vertices - lower_lip, axis=1) < 1.5) & (below > 0.3) & (depth > 1.0)
+    throat = inside & (depth < -1.0)
+    assert floor.sum() > 10 and throat.sum() > 10
+    assert parts.jaw_weight[floor].min() > 0.9 and parts.jaw_weight[throat].max() == 0.0
+
+
+def test_a_parts_file_keeps_what_it_calls_skin(ict_own_opening):
+    """Given a parts file, nothing is cut off: the user said what the skin is."""
+    from faceanim.parts import face_parts
+
+    target, parts, _ = ict_own_opening
+    labelled = face_parts(target, labels={"skin": [[0, 9408]]})
+    assert parts.mask("socket")[:9409].any() and not labelled.mask("socket")[:9409].any()

@@ -17,14 +17,17 @@ follow (teeth that stay put while the chin drops 2 cm). Each vertex therefore ge
 ``lid_layer``
     lashes, eye-occlusion and tear layers: ride on the nearest skin.
 ``socket``
-    the lining of an opening as a separate piece (a mouth socket, or an eye cap that is no ball):
-    it hangs from its rim, which rides on the lips or the lids.
+    the lining of an opening as a separate piece (a mouth socket, or an eye cap that is no ball), or
+    the inside of a mouth whose skin runs on past the lips, cut off at their inner rims
+    (:mod:`faceanim.parts.mouth`): it hangs from its rim, which rides on the lips or the lids, and
+    deep inside it is held by the gums (turned with the jaw below the bite).
 ``static``
     anything else that holds no control point (hair, a hat): keeps still with the skull.
 
 Parts are known from the labels a file carries (OBJ materials or groups, the part names a faceanim
 ``.glb`` keeps), from a ``--parts PARTS.json`` file, or found from the geometry: connected
-components, and where each sits against the eyes, the lip line and the chin. All positions are
+components, and where each sits against the eyes, the lip line and the chin (and, for a mouth's inside,
+the loop through the lips' inner rims; not when a parts file is given). All positions are
 measured in the face's own frame and in FAPU-relative terms, so nothing depends on the mesh's unit.
 """
 
@@ -46,7 +49,8 @@ __all__ = ["ROLES", "FaceParts", "face_parts", "read_parts_file", "face_axes", "
 
 def face_parts(target: Target, *, labels: dict | None = None, source: str = "") -> FaceParts:
     """The parts of ``target``: from ``labels`` (see :func:`read_parts_file`), else the part names the
-    mesh carries, else its geometry.
+    mesh carries, else its geometry. Without ``labels``, skin cut off behind the lips' inner rims is the
+    mouth's inside, a socket (:func:`~faceanim.parts.mouth.mouth_inside`); with them, what they call skin stays skin.
 
     Raises
     ------
@@ -63,7 +67,8 @@ def face_parts(target: Target, *, labels: dict | None = None, source: str = "") 
     frame = _Frame(axes, at, target)
     hint = _vertex_hints(mesh, labels, where)
     role, kind = _roles(mesh, target, frame, hint, where)
-    role[mouth_inside(mesh, role == _ROLE["skin"], target, axes[2])] = _ROLE["socket"]
+    if labels is None:  # a parts file is the user's word on what is skin
+        role[mouth_inside(mesh, role == _ROLE["skin"], target, axes[2], frame.mouth_width)] = _ROLE["socket"]
     eye_centres = np.stack([_eye_centre(mesh, role == _ROLE[side], frame, side) for side in ("eye_left", "eye_right")])
     jaw = np.zeros(len(mesh.vertices))
     # The frame's bite and turning centre start from the feature points; the teeth, where there are

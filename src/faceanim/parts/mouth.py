@@ -12,8 +12,8 @@ stopped 0.4 cm short of its control point. In a smile the bag drew the upper lip
 a point (pair 3).
 
 So the skin beyond the inner rims is told apart: the rims' control points joined by shortest paths
-along the skin make a closed loop, and the skin the loop cuts off from the face, lying behind the
-lips, is the mouth's inside. It is given the role of a socket, which hangs between the lips' inner
+along the skin make a closed loop, and the skin the loop cuts off from the face, reaching well behind
+the lips, is the mouth's inside. It is given the role of a socket, which hangs between the lips' inner
 edge and the gums (:mod:`faceanim.retarget.deform`), and the lips meet only at the mouth's corners,
 as on a head whose mouth is open. A head whose lips open onto a hole, or one with a separate socket,
 has nothing cut off and keeps its skin as it is.
@@ -35,17 +35,22 @@ __all__ = ["RIM_LOOP", "mouth_inside"]
 
 _NAMES = landmark_names(478)
 #: The inner rims' control points in order round the mouth, by the names placement gives them (MPEG-4's
-#: 2.2-2.9 where they are among MediaPipe's, so a target with MPEG-4's points alone has the same loop).
+#: 2.2-2.9 where they are among MediaPipe's, so a target with MPEG-4's points alone has a coarser loop
+#: round the same rims).
 RIM_LOOP = tuple(_NAMES[i] for i in LIP_INNER)
 _LEAST_POINTS = 6  # rim points a loop needs, both corners among them
 _LARGEST = 0.5  # a cut-off part bigger than this share of the face is no mouth (the loop leaked)
-_DEEP = 0.2  # of the inner rims' width: how far behind them a mouth's inside reaches, at least
+_DEEP = 0.2  # of the mouth's width: how far behind the rims a mouth's inside reaches, at least
+_REACH = 4.0  # a path between neighbouring rim points is at most this many times as long as the gap
 
 
-def mouth_inside(mesh: Mesh, skin: np.ndarray, target: Target, forward: np.ndarray) -> np.ndarray:
+def mouth_inside(mesh: Mesh, skin: np.ndarray, target: Target, forward: np.ndarray, width: float) -> np.ndarray:
     """``(V,) bool``: the skin ``skin (V,) bool`` that the loop through the lips' inner rims cuts off
-    from the rest of the face and that lies behind the rims along ``forward`` (the face's +z); or
-    nothing where the target lacks the rims' points, they are off the skin, or nothing is cut off."""
+    from the face and that reaches more than :data:`_DEEP` of the mouth's ``width`` (8.3 to 8.4) behind
+    the loop along ``forward`` (the face's +z). Nothing where the target has fewer than
+    :data:`_LEAST_POINTS` of :data:`RIM_LOOP`'s points or lacks a corner (2.4, 2.5), where one is off
+    the skin, or where nothing deep is cut off. The points are taken in :data:`RIM_LOOP`'s order
+    round the mouth, as placement names them."""
     none = np.zeros(len(mesh.vertices), dtype=bool)
     names = [n for n in RIM_LOOP if n in target.points]
     if len(names) < _LEAST_POINTS or not {"2.4", "2.5"} <= set(names):
@@ -60,29 +65,25 @@ def mouth_inside(mesh: Mesh, skin: np.ndarray, target: Target, forward: np.ndarr
     kept = np.ones(len(sub.vertices), dtype=bool)
     kept[loop] = False
     edges = sub.edges
-    inside_edges = edges[kept[edges].all(axis=1)]
     V = len(sub.vertices)
+    inside_edges = edges[kept[edges].all(axis=1)]
     graph = sparse.coo_matrix((np.ones(len(inside_edges)), (inside_edges[:, 0], inside_edges[:, 1])), shape=(V, V))
     _, labels = csgraph.connected_components(graph, directed=False)
     touching = np.zeros(V, dtype=bool)
-    touching[edges[~kept[edges[:, 0]] & kept[edges[:, 1]], 1]] = True
-    touching[edges[kept[edges[:, 0]] & ~kept[edges[:, 1]], 0]] = True
+    touching[edges[~kept[edges[:, 0]], 1]] = True
+    touching[edges[~kept[edges[:, 1]], 0]] = True
     parts = np.unique(labels[touching & kept])
-    if len(parts) < 2:
-        return none
     sizes = np.array([(labels == p).sum() for p in parts])
-    face = parts[np.argmax(sizes)]
-    # What the loop cuts off between itself and a hole's edge (where the shortest path leaves the
-    # edge of a mouth that opens) is a sliver: the inside of a mouth reaches well behind the lips.
+    face = parts[np.argmax(sizes)]  # the largest part the loop touches: the face round the mouth
+    # What the loop cuts off between itself and a hole's edge (where a shortest path leaves the edge
+    # of a mouth that opens) is a sliver in front of or level with the rims: the inside of a mouth
+    # reaches well behind them.
     forward = np.asarray(forward, dtype=np.float64)
     behind = (sub.vertices[loop] @ forward).mean() - sub.vertices @ forward
-    wide = np.linalg.norm(mesh.vertices[target.points["2.4"]] - mesh.vertices[target.points["2.5"]])
-    deep = [p for p in parts if p != face and behind[labels == p].max() > _DEEP * wide]
+    deep = [p for p in parts if p != face and behind[labels == p].max() > _DEEP * width]
     cut_off = kept & np.isin(labels, deep)
-    if not cut_off.any() or cut_off.sum() > _LARGEST * sizes.max():
-        return none
-    if behind[cut_off].mean() <= 0:
-        return none  # in front of the lips: not the mouth's inside
+    if cut_off.sum() > _LARGEST * sizes.max():
+        return none  # the loop leaked: no mouth is that large
     out = none.copy()
     out[np.flatnonzero(skin)[cut_off]] = True
     return out
@@ -94,7 +95,9 @@ def _closed_loop(mesh: Mesh, points: np.ndarray) -> np.ndarray | None:
     graph = edge_graph(mesh)
     loop = []
     for a, b in zip(points, np.roll(points, -1), strict=True):
-        distance, previous = csgraph.dijkstra(graph, indices=a, return_predecessors=True)
+        # Neighbouring rim points are a few edges apart along the lip: the search stops well past that.
+        reach = _REACH * np.linalg.norm(mesh.vertices[a] - mesh.vertices[b]) + 1e-9
+        distance, previous = csgraph.dijkstra(graph, indices=a, return_predecessors=True, limit=reach)
         if not np.isfinite(distance[b]):
             return None
         at = b

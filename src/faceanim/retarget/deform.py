@@ -118,10 +118,10 @@ class PartsDeformer:
         self.relaxer = FoldRelaxer(skin_mesh.vertices, skin_mesh.triangles) if relax else None
 
     def _bind_riders(self, mesh: Mesh, skin_mesh: Mesh):
-        """Lid layers and the rim of a separate mouth socket ride on the skin point nearest each
-        (skin-local corner ids, barycentric weights); the rest of a socket hangs from its rim (the
-        harmonic fill of the rim's motion over it), so the inside of the mouth spans the lips however
-        far they part, with its floor going down with the lower lip."""
+        """Lid layers ride on the skin point nearest each (skin-local corner ids, barycentric weights),
+        a socket's rim on the opening's edge; deep inside, a socket is held by the gums, and between
+        them and its rim it hangs (the harmonic fill of their motion over it), so the inside of the
+        mouth spans the lips however far they part, with its floor going down with the lower lip."""
         socket = self.parts.mask("socket")
         rim = np.zeros(len(mesh.vertices), dtype=bool)
         socket_triangles = mesh.triangles[socket[mesh.triangles].all(axis=1)]
@@ -147,7 +147,8 @@ class PartsDeformer:
             bary = np.vstack([bary, np.tile([1.0, 0.0, 0.0], (len(rims), 1))])
         riders = np.r_[layers, rims]
         self._riders = (riders, corners, bary) if len(riders) else None
-        # Deep inside (further than _GUM_DEPTH of the mouth's width from its rim) a socket is held by
+        # Deep inside (further than _GUM_DEPTH of the mouth's width from any socket's rim, in space; an eye
+        # cap is never that wide) a socket is held by
         # the gums: it turns with the jaw by its weight (faceanim.parts: below the bite and in front of
         # the turning centre). Between the gums and the rim it hangs, each vertex the mean of its
         # neighbours. Hung from the rim alone, the upper lip's lining hung from both lips through the
@@ -162,7 +163,9 @@ class PartsDeformer:
                 deep[hanging[~np.isfinite(apart)]] = True
             between, held = np.flatnonzero(socket & ~rim & ~deep), np.flatnonzero((socket & rim) | deep)
             if len(between):
-                self._hanging = between, held, _harmonic_fill(socket_triangles, len(mesh.vertices), between, held)
+                fill = _harmonic_fill(socket_triangles, len(mesh.vertices), between, held)
+                used = np.abs(fill).max(axis=0) > 0  # most of the deep vertices border nothing that hangs
+                self._hanging = between, held[used], fill[:, used]
 
     def jaw_turn(self, angles, vertices=None) -> np.ndarray:
         """``(T, N, 3)`` the ``vertices`` (default: all) turned fully about the hinge by ``angles (T,)``."""
@@ -332,7 +335,7 @@ class PartsDeformer:
         skin_field[again[folding]] = settled[folding]  # every push folds something: no last push
 
 
-_GUM_DEPTH = 0.25  # of the mouth's width: a socket further than this from its rim is held by the gums
+_GUM_DEPTH = 0.25  # of the mouth's width: a socket further than this from every socket rim is held by the gums
 _COVER_RINGS = (2, 4, 8, 16)  # rings around skin the teeth show through that are filled, tried in turn
 _CONTACT_ROUNDS = 4  # pushes out of the teeth and relaxations around them, taken in turn
 # Lip reaches (0.04 of the mouth's width): how far the last push is carried, tried in turn. 4 reaches: d6
@@ -410,7 +413,8 @@ def _nearest_neighbour_on(mesh: Mesh, vertices: np.ndarray, on: np.ndarray) -> n
 
 def _harmonic_fill(triangles: np.ndarray, count: int, inner, rim) -> np.ndarray:
     """``(I, R)``: the values at ``inner`` vertices that are the mean of their neighbours' (the graph
-    Laplacian's harmonic fill), given values at ``rim``; inner vertices no rim reaches hold 0."""
+    Laplacian's harmonic fill), given values at the held vertices ``rim``; inner vertices no held vertex
+    reaches hold 0."""
     from scipy import sparse
     from scipy.sparse.linalg import splu
 
