@@ -95,9 +95,13 @@ def _closed_loop(mesh: Mesh, points: np.ndarray) -> np.ndarray | None:
     graph = edge_graph(mesh)
     loop = []
     for a, b in zip(points, np.roll(points, -1), strict=True):
-        # Neighbouring rim points are a few edges apart along the lip: the search stops well past that.
+        # Neighbouring rim points are a few edges apart along the lip: the search stops well past that,
+        # unless it has to go round (placement can put an upper and a lower rim point on one vertex of
+        # lips that meet, and the path between their neighbours then runs along the other lip).
         reach = _REACH * np.linalg.norm(mesh.vertices[a] - mesh.vertices[b]) + 1e-9
         distance, previous = csgraph.dijkstra(graph, indices=a, return_predecessors=True, limit=reach)
+        if not np.isfinite(distance[b]):
+            distance, previous = csgraph.dijkstra(graph, indices=a, return_predecessors=True)
         if not np.isfinite(distance[b]):
             return None
         at = b
