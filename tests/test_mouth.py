@@ -67,6 +67,17 @@ def test_nothing_is_cut_off_where_there_is_no_closed_mouth_behind_the_rims(case)
     assert not mouth_inside(mesh, skin, target, FORWARD, WIDTH).any()
 
 
+def test_a_skin_that_is_all_rim_has_no_inside():
+    """Six rim points that are the whole skin (a hexagon fanned from one corner): the loop leaves nothing
+    to cut off, and nothing is, without an error."""
+    angles = np.linspace(0.0, 2 * np.pi, 6, endpoint=False)
+    mesh = Mesh(np.stack([np.cos(angles), np.sin(angles), np.zeros(6)], axis=1),
+                np.array([[0, k, k + 1] for k in range(1, 5)]))
+    names = [RIM_LOOP[k] for k in (0, 3, 6, 10, 13, 16)]  # both corners (2.5, 2.4) among them, in order
+    target = Target(mesh, dict(zip(names, range(6), strict=True)), None)
+    assert not mouth_inside(mesh, np.ones(6, dtype=bool), target, FORWARD, WIDTH).any()
+
+
 @pytest.fixture(scope="module")
 def wide_open_pair():
     """ICT's round trip, pair 100 (identity A's exact jawOpen at the points placed on it drives identity

@@ -73,6 +73,8 @@ def mouth_inside(mesh: Mesh, skin: np.ndarray, target: Target, forward: np.ndarr
     touching[edges[~kept[edges[:, 0]], 1]] = True
     touching[edges[~kept[edges[:, 1]], 0]] = True
     parts = np.unique(labels[touching & kept])
+    if len(parts) < 2:
+        return none  # the loop cuts nothing off (or holds the whole skin)
     sizes = np.array([(labels == p).sum() for p in parts])
     face = parts[np.argmax(sizes)]  # the largest part the loop touches: the face round the mouth
     # What the loop cuts off between itself and a hole's edge (where a shortest path leaves the edge
