@@ -13,10 +13,11 @@ So each pair of facing lid points the source and the target share (MediaPipe's e
 over lower, MPEG-4's 3.1/3.3 and 3.2/3.4 among them) has the part of its displacement along the line
 between the two scaled by the target's distance between them over the source's (the source's as
 carried, the similarity's scale included), clipped to [1 / :data:`MOST`, :data:`MOST`]; and where the
-two then close by more than the target's opening they are held where they meet (their closing parts
-scaled back together): lids do not pass each other, and a source whose own lids overshoot (ICT-FaceKit's
-eyeBlink lowers the lash line 0.96 cm whatever the face; on the round trip's seed-3 source, open 0.72
-cm, it passes the lower lid) would otherwise carry the overshoot, scaled, onto the target. The rest of
+two then close by more than :data:`SHUT` of the target's opening they are held there (their closing
+parts scaled back together): lids do not pass each other, and a source whose own lids overshoot
+(ICT-FaceKit's eyeBlink lowers the lash line 0.96 cm whatever the face; on the round trip's seed-3
+source, open 0.72 cm, it passes the lower lid) would otherwise carry the overshoot, scaled, onto the
+target. The rest of
 each displacement, and every other point, is carried as it is. A target whose control points hold only
 some of a lid's pairs (a hand-written point file) has those scaled alone, and its lid may kink between
 a scaled point and an unscaled neighbour; every layout faceanim places holds whole lids.
@@ -30,13 +31,22 @@ import numpy as np
 
 from ..landmarks import EYE_LIDS, landmark_names
 
-__all__ = ["LID_PAIRS", "MOST", "LidOpenings"]
+__all__ = ["LID_PAIRS", "MOST", "SHUT", "LidOpenings"]
 
 _NAMES = landmark_names(478)
 #: Facing lid points, (upper, lower), by the names a Motion gives them ("3.1" over "3.3" ...).
 LID_PAIRS = tuple((_NAMES[u], _NAMES[lo]) for upper, lower in EYE_LIDS.values() for u, lo in zip(upper, lower,
                                                                                                 strict=True))
 MOST = 2.0  # a target's opening at most this many times the source's (or this many times smaller) counts
+#: How far a pair of lids closes at most, as a share of the target's opening between them. Closed all the
+#: way, the lids squash flat the skin that joins them at the eye's corners, and any overshoot there turns
+#: its triangles over; the fold relaxer (:mod:`.deform`) cannot tell that from a fold and fills the whole
+#: lid back towards open. On round-trip pair 106 (no video; ICT's blink truth leaves its eyes a slit
+#: open) 72 triangles at the corners turned, the upper lids' middle points ended 0.05 cm down of the 1.25
+#: asked, and both eyes stayed wide open at the blink's apex (the face's blink error 0.69). Held at 0.9
+#: (0.95): 0.55 (0.65), the eyes shut to a line (render). The tuning seeds 3, 4, 6, 7, 8 and 20 moved by
+#: -0.02 to +0.01 with no video and by -0.04 to 0 tracked (``benchmarks/roundtrip_ict.py``'s blink).
+SHUT = 0.9
 
 
 @dataclass(frozen=True, eq=False)
@@ -84,14 +94,16 @@ class LidOpenings:
 
     def __call__(self, displacements: np.ndarray) -> np.ndarray:
         """Carried ``displacements (T, K, 3)`` of the control points, changed in place: each pair's
-        parts along its line scaled by its ratio, then held where the two meet; returned."""
+        parts along its line scaled by its ratio, then held where the two have closed :data:`SHUT` of
+        the target's opening; returned."""
         if not len(self.upper):
             return displacements
         up = np.einsum("tnc,nc->tn", displacements[:, self.upper], self.along)  # along the line, upwards
         low = np.einsum("tnc,nc->tn", displacements[:, self.lower], self.along)
         scaled_up, scaled_low = up * self.ratio, low * self.ratio
         closing = scaled_low - scaled_up  # how much nearer the two come
-        held = np.where(closing > self.opening, self.opening / np.maximum(closing, 1e-12), 1.0)
+        most = SHUT * self.opening
+        held = np.where(closing > most, most / np.maximum(closing, 1e-12), 1.0)
         displacements[:, self.upper] += ((scaled_up * held - up)[:, :, None]) * self.along
         displacements[:, self.lower] += ((scaled_low * held - low)[:, :, None]) * self.along
         return displacements
