@@ -56,3 +56,12 @@ def test_copies_and_pickles_of_a_target_stay_frozen():
         assert not other.mesh.vertices.flags.writeable
         with pytest.raises(TypeError):
             other.points["2.1"] = 4
+
+
+def test_the_mouths_width_is_the_distance_between_its_corners_whatever_way_they_lie():
+    mesh = grid_mesh(3)  # vertices on a unit grid in the z = 0 plane
+    a, b = 0, len(mesh.vertices) - 1  # opposite corners: (0, 0) and (1, 1)
+    target = Target(mesh, {"8.3": int(a), "8.4": int(b)}, None)
+    assert target.mouth_width == pytest.approx(np.linalg.norm(mesh.vertices[a] - mesh.vertices[b]))
+    assert target.mouth_width > abs(mesh.vertices[a, 0] - mesh.vertices[b, 0])  # not across the face only
+    assert Target(mesh, {"8.3": int(a)}, None).mouth_width == 0.0

@@ -94,6 +94,15 @@ class Target:
         """``(N,) int64`` vertex ids of the named points; an unknown name raises ``KeyError``."""
         return np.array([self.points[n] for n in names], dtype=np.int64)
 
+    @property
+    def mouth_width(self) -> float:
+        """The distance between the mouth's corners (8.3 to 8.4) in the mesh's units; 0.0 where the
+        target lacks either. FAPU's MW0 is their distance across the face only."""
+        if not {"8.3", "8.4"} <= self.points.keys():
+            return 0.0
+        corners = self.mesh.vertices[self.ids(["8.3", "8.4"])]
+        return float(np.linalg.norm(corners[0] - corners[1]))
+
 
 def measure_fapu(mesh: Mesh, points: dict, *, source: str = "") -> Fapu:
     """FAPU from the target's feature points; pupils (3.5, 3.6), when missing, are taken as the

@@ -205,8 +205,7 @@ class TeethContact:
 
 def _lip_reach(target: Target) -> float:
     """How far from the inner-lip points the lips reach: 0.12 of the mouth's width (8.3 to 8.4)."""
-    corners = target.mesh.vertices[target.ids(["8.3", "8.4"])]
-    return float(0.12 * np.linalg.norm(corners[0] - corners[1]))
+    return 0.12 * target.mouth_width
 
 
 def _lip_skin(target: Target, skin_ids: np.ndarray, reach: float) -> np.ndarray:

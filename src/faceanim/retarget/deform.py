@@ -110,8 +110,7 @@ class PartsDeformer:
         lip = target.points.get("8.2")
         self._under_lips = (None if lip is None
                             else skin & ((mesh.vertices - mesh.vertices[lip]) @ parts.axes[1] < 0.0))
-        corners = [target.points[n] for n in ("8.3", "8.4") if n in target.points]
-        self._mouth_width = float(np.linalg.norm(np.subtract(*mesh.vertices[corners]))) if len(corners) == 2 else 0.0
+        self._mouth_width = target.mouth_width
         self._bind_riders(mesh, skin_mesh)
         self.contact = TeethContact(target, parts, skin_ids)
         self.cover = TeethCover(target, parts, skin_ids)
