@@ -38,8 +38,10 @@ def test_lids_that_would_pass_each_other_are_held_short_of_meeting():
     out = moved(lids, [0.0, -1.0, 0.0], [0.0, 0.2, 0.0])  # the source's lids overshoot by 0.4
     np.testing.assert_allclose(out[0, 1] - out[1, 1], -SHUT * 1.2)  # SHUT of the target's 1.2 opening closed
     np.testing.assert_allclose(out[0, 1] / out[1, 1], -5.0)  # each keeps its share of the closing
-    closing = moved(lids, [0.0, -0.6, 0.0])  # 0.9 of the target's opening asked: not held
+    closing = moved(lids, [0.0, -0.6, 0.0])  # 0.9 cm asked, 0.75 of the target's 1.2 opening: not held
     np.testing.assert_allclose(closing[0], [0.0, -0.9, 0.0])
+    nearly = moved(lids, [0.0, -0.76, 0.0])  # 1.14 cm asked, 0.95 of the opening: held at SHUT, short of meeting
+    np.testing.assert_allclose(nearly[0], [0.0, -SHUT * 1.2, 0.0])
     opening = moved(lids, [0.0, 0.3, 0.0])  # a lid raised: no limit
     np.testing.assert_allclose(opening[0], [0.0, 0.45, 0.0])
 
