@@ -188,3 +188,20 @@ def test_a_parts_file_keeps_what_it_calls_skin(ict_own_opening):
     target, parts, _ = ict_own_opening
     labelled = face_parts(target, labels={"skin": [[0, 9408]]})
     assert parts.mask("socket")[:9409].any() and not labelled.mask("socket")[:9409].any()
+
+
+def test_a_lip_rim_the_inside_borders_all_round_is_left_out_of_the_spread():
+    """ICT identity pair 310: the mouth's inside, cut off, borders B's control mp88 on every side, so it
+    lies on no skin triangle. The deformation leaves it out (it made the spread fail with "control_vertices
+    must be distinct"), and the face still follows the jaw."""
+    shared("ict_facekit")
+    from ict_scenario import load_ict
+    from roundtrip_ict import exact_run
+
+    model = load_ict()
+    A, B = model.random_identities(np.random.default_rng(310))
+    opening = model.expression_deltas[list(model.expression_names).index("jawOpen")]
+    moved = exact_run(model, A, B, np.stack([np.zeros_like(opening), opening]))
+    chin = np.argmin(opening[:, 1])  # the vertex the truth drops furthest
+    np.testing.assert_allclose(moved[0], B, atol=1e-9)
+    assert moved[1, chin, 1] - B[chin, 1] < 0.5 * opening[chin, 1] < 0, (moved[1, chin] - B[chin], opening[chin])

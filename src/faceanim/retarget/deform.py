@@ -79,7 +79,7 @@ class PartsDeformer:
         Of the same target (:func:`faceanim.parts.face_parts`).
     control_vertices : (K,) int64
         Distinct vertex ids whose displacements will be given; those off the skin (an iris point on
-        an eyeball) are ignored, since their parts move as wholes.
+        an eyeball) are ignored, since their parts move as wholes, and so are those on no skin triangle.
 
     Calling it with displacements ``(T, K, 3)``, jaw angles ``(T,)`` and optionally eye rotations
     ``(T, 2, 3, 3)`` gives positions ``(T, V, 3)``.
@@ -90,7 +90,13 @@ class PartsDeformer:
         mesh = target.mesh
         ids = np.asarray(control_vertices, dtype=np.int64)
         skin = parts.mask("skin")
-        self.on_skin = skin[ids]
+        self._skin_triangles = mesh.triangles[skin[mesh.triangles].all(axis=1)]
+        # A skin vertex in no skin triangle (a lip's rim the mouth's inside, cut off as a socket, borders
+        # all round: ICT identity 310's mp88) has no surface to spread its motion over; as a control it
+        # is left out like one off the skin (its ids made the spread's operator fail).
+        spreads = np.zeros(len(mesh.vertices), dtype=bool)
+        spreads[self._skin_triangles] = True
+        self.on_skin = spreads[ids]
         if not self.on_skin.any():
             raise InputError("no control point lies on the skin; label the target's parts with --parts PARTS.json")
         skin_ids = np.flatnonzero(skin)
@@ -105,7 +111,6 @@ class PartsDeformer:
         # turned_vectors' (R - I) r = sin(t) a x r + (1 - cos(t)) a x (a x r), its products kept per vertex
         self._turn_sin = np.cross(axis, r)
         self._turn_cos = np.cross(axis, self._turn_sin)
-        self._skin_triangles = mesh.triangles[skin[mesh.triangles].all(axis=1)]
         # Below the lower lip's lowest point (8.2): the chin, the jaw line and the neck it swings into.
         lip = target.points.get("8.2")
         self._under_lips = (None if lip is None
