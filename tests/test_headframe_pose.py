@@ -9,9 +9,11 @@ import faceanim.capture.headframe as headframe
 from faceanim.capture.headframe import restabilise
 from faceanim.capture.metric import canonical_face
 
-# Forehead landmarks: the skull's landmarks a brow raise or a smile moves most on ICT renders of a
-# still head (benchmarks/skull_shifts.py), MediaPipe's depth of them shifting by 1-4 mm.
+# Forehead landmarks: a brow raise carries them 2-5 mm on ICT's expressions and MediaPipe's depth of them
+# shifts by as much (benchmarks/skull_shifts.py); the head fit leaves them out.
 FOREHEAD = [10, 67, 297, 54, 284]
+# The eyes' corners stay in the fit, but MediaPipe's depth of them shifts by 2-4 mm through a blink.
+EYE_CORNERS = [33, 133, 263, 362]
 
 
 def turn_of(pose: np.ndarray) -> float:
@@ -31,16 +33,24 @@ def rest():
     return canonical_face().vertices[:468].copy()
 
 
-def test_an_expressions_depth_shift_on_the_forehead_is_not_a_turn(rest):
+def test_a_brow_raise_on_the_forehead_does_not_count_in_the_head_fit(rest):
     expressed = rest.copy()
-    expressed[FOREHEAD, 2] += 0.3  # 3 mm forward, as a brow raise is seen
+    expressed[FOREHEAD] += [0.0, 0.4, 0.3]  # 4 mm up and 3 mm forward, as a brow raise is seen
+    points, pose = restabilise(np.stack([rest, expressed]), np.tile(np.eye(4), (2, 1, 1)), rest, np.ones(2, bool))
+    assert turn_of(pose[1]) < 1e-9
+    np.testing.assert_allclose(points[1], expressed, atol=1e-9)  # the raise stays on the face, all of it
+
+
+def test_an_expressions_depth_shift_on_the_eyes_corners_is_not_a_turn(rest):
+    expressed = rest.copy()
+    expressed[EYE_CORNERS, 2] += 0.3  # 3 mm forward, as a blink is seen
     pose = fitted(np.stack([rest, expressed]), rest)
     assert turn_of(pose[0]) < 1e-9
     robust = turn_of(pose[1])
-    assert robust < 0.4  # degrees: the robust fit lets the carried-off points count less ...
+    assert robust < 0.15  # degrees: the robust fit lets the carried-off points count less ...
     saved = headframe._SKULL_SPREAD
     try:
-        headframe._SKULL_SPREAD = np.inf  # ... than every skull landmark at full weight: 1.1 degrees
+        headframe._SKULL_SPREAD = np.inf  # ... than every skull landmark at full weight: 0.6 degrees
         assert turn_of(fitted(np.stack([rest, expressed]), rest)[1]) > 3 * robust
     finally:
         headframe._SKULL_SPREAD = saved
@@ -83,7 +93,10 @@ def test_a_depth_the_tracker_breathes_along_the_line_of_sight_is_taken_out(rest,
     before = seen @ pose[1, :3, :3].T + pose[1, :3, 3]
     after = points[1] @ new_pose[1, :3, :3].T + new_pose[1, :3, 3]
     assert np.abs((after - before)[:, :2]).max() < 0.01
-    assert stretched < 0.025  # cm, over every point (the similarity and the depth's map fitted in turn twice)
+    # cm, over every point (the similarity and the depth's map fitted in turn twice): 0.33 mm over the 18
+    # skull landmarks the fit uses, 0.25 when the forehead and the cheeks under the eyes counted too;
+    # the similarity alone leaves 2 mm
+    assert stretched < 0.04
     def no_depth_map(source, targets, *args, **kwargs):
         return np.tile(np.eye(4), (len(targets), 1, 1))
     monkeypatch.setattr(headframe, "robust_depth_affine", no_depth_map)
