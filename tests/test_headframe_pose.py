@@ -59,7 +59,7 @@ def test_an_expressions_depth_shift_on_the_eyes_corners_is_not_a_turn(rest):
 def test_a_real_turn_comes_out_as_pose_with_or_without_an_expression(rest):
     R = Rotation.from_euler("xyz", [8.0, -15.0, 4.0], degrees=True).as_matrix()
     expressed = rest.copy()
-    expressed[FOREHEAD, 2] += 0.3
+    expressed[EYE_CORNERS, 2] += 0.3
     turned = np.stack([rest @ R.T + [1.0, -2.0, 0.5], expressed @ R.T + [1.0, -2.0, 0.5]])
     points, pose = restabilise(turned, np.tile(np.eye(4), (2, 1, 1)), rest, np.ones(2, bool))
     np.testing.assert_allclose(pose[0, :3, :3], R, atol=1e-9)  # exact without an expression
@@ -93,8 +93,8 @@ def test_a_depth_the_tracker_breathes_along_the_line_of_sight_is_taken_out(rest,
     before = seen @ pose[1, :3, :3].T + pose[1, :3, 3]
     after = points[1] @ new_pose[1, :3, :3].T + new_pose[1, :3, 3]
     assert np.abs((after - before)[:, :2]).max() < 0.01
-    # cm, over every point (the similarity and the depth's map fitted in turn twice): 0.33 mm over the 18
-    # skull landmarks the fit uses, 0.25 when the forehead and the cheeks under the eyes counted too;
+    # cm, over every point (the similarity and the depth's map fitted in turn twice): 0.33 mm (at the chin)
+    # with the fit over 18 landmarks, 0.25 when the forehead and the cheeks under the eyes counted too;
     # the similarity alone leaves 2 mm
     assert stretched < 0.04
     def no_depth_map(source, targets, *args, **kwargs):

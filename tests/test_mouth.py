@@ -190,7 +190,7 @@ def test_a_parts_file_keeps_what_it_calls_skin(ict_own_opening):
     assert parts.mask("socket")[:9409].any() and not labelled.mask("socket")[:9409].any()
 
 
-def test_a_lip_rim_the_inside_borders_all_round_is_left_out_of_the_spread():
+def test_a_lip_rim_the_inside_borders_all_round_is_left_out_of_the_spread(tmp_path):
     """ICT identity pair 310: the mouth's inside, cut off, borders B's control mp88 on every side, so it
     lies on no skin triangle. The deformation leaves it out (it made the spread fail with "control_vertices
     must be distinct"), and the face still follows the jaw."""
@@ -198,8 +198,19 @@ def test_a_lip_rim_the_inside_borders_all_round_is_left_out_of_the_spread():
     from ict_scenario import load_ict
     from roundtrip_ict import exact_run
 
+    from faceanim import pipeline
+    from faceanim.geometry import write_mesh
+    from faceanim.parts import face_parts
+    from faceanim.retarget.deform import PartsDeformer
+
     model = load_ict()
     A, B = model.random_identities(np.random.default_rng(310))
+    write_mesh(tmp_path / "B.obj", model.mesh(B))
+    target = pipeline.load_target(tmp_path / "B.obj")
+    parts = face_parts(target)
+    ids = np.unique(target.ids([n for n in target.points if n.startswith("mp")]))
+    left_out = parts.mask("skin")[ids] & ~PartsDeformer(target, parts, ids).in_spread
+    assert left_out.any()  # the case this test is for: a skin control on no skin triangle
     opening = model.expression_deltas[list(model.expression_names).index("jawOpen")]
     moved = exact_run(model, A, B, np.stack([np.zeros_like(opening), opening]))
     chin = np.argmin(opening[:, 1])  # the vertex the truth drops furthest

@@ -37,15 +37,17 @@ DEFAULT_SMOOTHING = OneEuro()
 # and 143/372 (2 mm with a brow raise). Counted even at the robust fit's reduced weight, they tilted the
 # head with brow raises and smiles. Round trip (the motion route) on the tuning seeds 3, 4, 6, 7, 8, 20,
 # the view and blink tables made again for each set, median over seeds, with the first six only -> all
-# eighteen: all 0.537 -> 0.518 (no seed worse; 3: 0.539 -> 0.496), brows 0.552 -> 0.531, blink 0.543 ->
-# 0.536, smile 0.540 -> 0.541, jawOpen 0.401 -> 0.407. The forehead alone gave 0.526 (smile 0.550); also
-# leaving out 119/348 and 132/361 (a smile moves them 2.5-3 mm) left too few: 0.539, brows 0.550.
+# fifteen (18 landmarks left in the fit): all 0.537 -> 0.518 (no seed worse; 3: 0.539 -> 0.496), brows
+# 0.552 -> 0.531, blink 0.543 -> 0.536, smile 0.540 -> 0.541, jawOpen 0.401 -> 0.407. The forehead alone
+# gave 0.526 (smile 0.550); also leaving out 119/348 and 132/361 (a smile moves them 2.5-3 mm) left too
+# few: 0.539, brows 0.550. Over the 12 reporting pairs: median 0.57 -> 0.56 (no pair worse), blink 0.74
+# -> 0.71, brows 0.61 -> 0.62 (benchmarks/results/roundtrip_pairs.md).
 _MOVED_BY_EXPRESSION = (136, 365, 147, 376, 205, 425, 10, 54, 284, 67, 297, 117, 346, 143, 372)
 _BLOCK = 256  # frames fitted at once: the fits' temporaries stay a few MB however long the video
 # A skull landmark this far (cm) from its rest position counts half in the head fit (robust_procrustes).
-# MediaPipe's depths of the forehead and eye corners shift with brow raises, blinks and smiles; fitted
-# with full weights they pitched the head by 1.5-3.5 degrees on ICT renders of a still head, and the
-# whole face seemed to move (benchmarks/roundtrip_ict.py).
+# MediaPipe's depths of the eye corners and nose shift with blinks and smiles (and did of the forehead,
+# since left out); fitted with full weights, the skull's landmarks pitched the head by 1.5-3.5 degrees on
+# ICT renders of a still head, and the whole face seemed to move (benchmarks/roundtrip_ict.py).
 _SKULL_SPREAD = 0.1
 # The head's turn is filtered as the face's points are, a point this far (cm) from the axis standing for
 # it: a rotation matrix's rows move at the turn's angular speed (rad/s), so its cut-off rises with

@@ -90,7 +90,7 @@ def robust_procrustes(source, targets, weights, *, scale: float, rounds: int = 5
 
     Iteratively reweighted: after each fit, a point ``r`` away from its source position keeps
     ``weights / (1 + (r / scale)^2)`` (Cauchy's weight), so a few points carried off together (a
-    forehead a brow raise lifts, cheeks a smile raises) no longer tilt the fit, while points that
+    pair of eye corners whose depth the tracker shifts through a blink) no longer tilt the fit, while points that
     agree within ``scale`` keep their full say. ``(T, 4, 4)``, source onto each target.
     """
     w0 = np.asarray(weights, dtype=np.float64)

@@ -96,8 +96,8 @@ class PartsDeformer:
         # is left out like one off the skin (its ids made the spread's operator fail).
         spreads = np.zeros(len(mesh.vertices), dtype=bool)
         spreads[self._skin_triangles] = True
-        self.on_skin = spreads[ids]
-        if not self.on_skin.any():
+        self.in_spread = spreads[ids]
+        if not self.in_spread.any():
             raise InputError("no control point lies on the skin; label the target's parts with --parts PARTS.json")
         skin_ids = np.flatnonzero(skin)
         skin_mesh, index = submesh(mesh, skin)
@@ -105,7 +105,7 @@ class PartsDeformer:
         self.parts = parts
         self.skin_ids = skin_ids
         self.controls = ids
-        self.spread = SparseTransfer(skin_mesh, index[ids[self.on_skin]], falloff=falloff)
+        self.spread = SparseTransfer(skin_mesh, index[ids[self.in_spread]], falloff=falloff)
         r = mesh.vertices - parts.hinge
         axis = parts.axes[0]
         # turned_vectors' (R - I) r = sin(t) a x r + (1 - cos(t)) a x (a x r), its products kept per vertex
@@ -191,13 +191,13 @@ class PartsDeformer:
         weight = self.parts.jaw_weight.copy()
         if not weight.any():  # a target with no jaw (no face points to place one): nothing to fit
             return weight
-        controls = self.controls[self.on_skin]
+        controls = self.controls[self.in_spread]
         energy, along = np.zeros(len(controls)), np.zeros(len(controls))
         for start in range(0, len(angles), _FIT_CHUNK):  # sums over frames, a chunk of the motion at a time
             at = slice(start, start + _FIT_CHUNK)
             turn = self.jaw_turn(angles[at], controls)  # (t, K, 3)
             energy += (turn ** 2).sum(axis=(0, 2))
-            along += (displacements[at][:, self.on_skin] * turn).sum(axis=(0, 2))
+            along += (displacements[at][:, self.in_spread] * turn).sum(axis=(0, 2))
         seen = energy > 1e-12 * max(energy.max(), 1e-300)
         share = np.where(seen, along / np.where(seen, energy, 1.0), weight[controls])
         change = np.clip(share, 0.0, 1.0) - weight[controls]
@@ -251,8 +251,8 @@ class PartsDeformer:
         (:meth:`_kept_in_front_of_teeth`)."""
         turn = self.jaw_turn(angles)  # (T, V, 3)
         moved = turn * weight[None, :, None]
-        controls = self.controls[self.on_skin]
-        residual = displacements[:, self.on_skin] - moved[:, controls]
+        controls = self.controls[self.in_spread]
+        residual = displacements[:, self.in_spread] - moved[:, controls]
         skin_field = moved[:, self.skin_ids] + self.spread(residual)
         if self.relaxer is None:
             self.contact(skin_field, angles)
