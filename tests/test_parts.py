@@ -727,3 +727,12 @@ def test_skin_carried_behind_the_lower_teeth_is_put_back_in_front(ict):
     positions = rest[None].copy()
     positions[0, skin] += field[0]
     assert not turned_over(rest, positions, skin_triangles).any()
+
+
+def test_controls_none_of_which_lie_on_the_skin_are_refused_in_one_line(ict):
+    """Controls all off the skin's surface (a parts file that calls the face something else, points on the
+    eyeballs) leave nothing to spread: the user is told, not handed a face that never moves."""
+    target, parts = ict
+    off = np.flatnonzero(~parts.mask("skin"))[:12]
+    with pytest.raises(InputError, match=r"no control point lies on the skin's surface .* --parts PARTS.json"):
+        PartsDeformer(target, parts, off)

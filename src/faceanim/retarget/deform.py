@@ -98,7 +98,8 @@ class PartsDeformer:
         spreads[self._skin_triangles] = True
         self.in_spread = spreads[ids]
         if not self.in_spread.any():
-            raise InputError("no control point lies on the skin; label the target's parts with --parts PARTS.json")
+            raise InputError("no control point lies on the skin's surface (a skin triangle); label the target's parts "
+                             "with --parts PARTS.json")
         skin_ids = np.flatnonzero(skin)
         skin_mesh, index = submesh(mesh, skin)
         self.rest = mesh.vertices
