@@ -97,8 +97,10 @@ def test_a_source_that_shuts_its_eyes_shuts_the_avatars_taller_or_shorter_ones()
 
 def test_a_blink_that_shuts_a_tall_eyed_target_is_not_filled_back_open(monkeypatch):
     """ICT's round trip, pair 106, at the blink's apex (A's exact motion at the points placed on it, no
-    video): B's upper lids' middle points come down most of the way asked. Closed all the way, the skin
-    joining the lids at the eyes' corners turned over, and the fold relaxer filled both lids back open."""
+    video): B's upper lids' middle points come down most of the way asked, held at SHUT and closed all
+    the way. Before the spread's weights were kept non-negative, closed all the way the skin joining the
+    lids at the eyes' corners turned over and the fold relaxer filled both lids back open (0.05 of the
+    way)."""
     from conftest import shared
 
     shared("ict_facekit")
@@ -122,4 +124,4 @@ def test_a_blink_that_shuts_a_tall_eyed_target_is_not_filled_back_open(monkeypat
     down = lids_down()
     monkeypatch.setattr(lids, "SHUT", 1.0)
     all_the_way = lids_down()
-    assert (down > 0.7).all() and (all_the_way < 0.3).all(), (down, all_the_way)
+    assert (down > 0.7).all() and (all_the_way > 0.7).all(), (down, all_the_way)

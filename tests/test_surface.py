@@ -62,6 +62,49 @@ def test_plain_biharmonic_reproduces_constants_and_falloff_relaxes_to_zero():
     assert faded[112, 0] < 0.5  # the centre is far from every corner in units of the falloff
 
 
+def test_bounded_biharmonic_moves_no_vertex_past_its_controls():
+    # A row of controls coming down beside a row held still (a lash line and the lid's skin above it):
+    # the biharmonic field carries the slope between them on, so the skin beyond the still row rises;
+    # the bounded field stays between the two, and both land the controls exactly and carry a uniform
+    # motion alike.
+    mesh = grid_mesh(12)
+    rows = np.arange(12)
+    ids = np.r_[rows + 12 * 3, rows + 12 * 5]
+    values = np.r_[np.full(12, -1.0), np.zeros(12)][:, None]
+    plain = BiharmonicInterpolation(mesh, ids, falloff=0.25)
+    bounded = BiharmonicInterpolation(mesh, ids, falloff=0.25, bounded=True)
+    assert plain(values).max() > 0.03  # the overshoot the bounded field is for
+    out = bounded(values)
+    assert out.min() >= -1.0 - 1e-12 and out.max() <= 1e-12
+    np.testing.assert_allclose(out[ids], values, atol=1e-12)
+    np.testing.assert_allclose(bounded(np.ones((len(ids), 1))), plain(np.ones((len(ids), 1))), atol=1e-9)
+    assert (bounded.operator >= 0).all()
+
+
+def test_bounded_interpolation_keeps_random_values_within_their_range():
+    mesh = grid_mesh(10)
+    ids = np.random.default_rng(1).choice(100, size=15, replace=False)
+    values = np.random.default_rng(2).normal(size=(15, 3))
+    plain = BiharmonicInterpolation(mesh, ids, falloff=0)(values)
+    assert (plain.min(axis=0) < values.min(axis=0) - 0.05).any()  # the biharmonic field leaves the range
+    out = BiharmonicInterpolation(mesh, ids, falloff=0, bounded=True)(values)
+    # falloff 0: every row sums to 1, so each vertex is a weighted mean of the controls' values
+    assert (out >= values.min(axis=0) - 1e-12).all() and (out <= values.max(axis=0) + 1e-12).all()
+    assert (SparseTransfer(mesh, ids, bounded=True).operator >= 0).all()  # the transfer passes it on
+    assert (SparseTransfer(mesh, ids).operator < 0).any()
+
+
+def test_weights_are_eased_to_nonnegative_without_a_kink():
+    from faceanim.geometry.surface import EASE, eased_weights
+
+    h = 1e-7
+    for at in (0.0, EASE):  # where the curve's pieces meet: no jump and no kink (a plain cut at 0 kinks)
+        below, here, above = eased_weights(np.array([at - h, at, at + h]))
+        assert (here - below) / h == pytest.approx((above - here) / h, abs=1e-5)
+    np.testing.assert_allclose(eased_weights(np.array([-0.3, 0.0, EASE / 2, 1.0])),
+                               [0.0, 0.0, EASE / 8, 1.0 - EASE / 2])
+
+
 def test_surface_interpolation_errors():
     two_parts = Mesh(np.r_[grid_mesh(3).vertices, grid_mesh(3).vertices + 5],
                      np.r_[grid_mesh(3).triangles, grid_mesh(3).triangles + 9])
@@ -71,6 +114,8 @@ def test_surface_interpolation_errors():
         BiharmonicInterpolation(grid_mesh(3), [0, 1, 1])
     with pytest.raises(ValueError, match="falloff must be a finite number >= 0"):
         BiharmonicInterpolation(grid_mesh(3), [0, 1], falloff=-1)
+    with pytest.raises(ValueError, match="bounded is for the surface metric only"):
+        SparseTransfer(grid_mesh(3), [0, 1, 2], metric="euclidean", bounded=True)
 
 
 def test_euclidean_sparse_transfer_is_the_rbf_warp():

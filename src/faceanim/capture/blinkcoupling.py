@@ -123,8 +123,7 @@ class BlinkCoupling:
         eyes half shut by ICT's blink, read as 0.1-0.2 of it), so at a lid it asks for more than a
         shut eye can give: on the shared videos' fullest blinks the lids passed each other by 0.2-0.6
         of the eye's opening. A target's lids are held short of meeting anyway (at :data:`faceanim.retarget.lids.SHUT`
-        of its opening, so that the skin joining them at the corners is not turned over); the motion, its FAPs
-        and its exports are held here, where the lids meet."""
+        of its opening); the motion, its FAPs and its exports are held here, where the lids meet."""
         for upper, lower in _LID_PAIRS:
             top, bottom = self.neutral[upper, 1], self.neutral[lower, 1]
             allowed = np.maximum((top + displacements[:, upper, 1]) - (bottom + displacements[:, lower, 1]), 0.0)

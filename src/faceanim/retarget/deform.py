@@ -2,7 +2,8 @@
 
 The skin turns with the jaw about its hinge (each vertex by its jaw weight: smooth skinning along the
 surface) and the tracked motion's residual after that turn is spread on top by surface-aware
-interpolation, so every control point lands where the motion puts it, except where that would fold
+interpolation (whose weights are kept non-negative: no vertex moves past its controls), so every
+control point lands where the motion puts it, except where that would fold
 the skin (folds are relaxed, :class:`~faceanim.geometry.relax.FoldRelaxer`) or push a lip into the
 teeth (it is pushed back out). The teeth are rigid: the upper set with the skull, the lower set (and
 the tongue) turned by the same jaw. Eyeballs turn about their centres with the gaze. Lashes and other
@@ -106,7 +107,9 @@ class PartsDeformer:
         self.parts = parts
         self.skin_ids = skin_ids
         self.controls = ids
-        self.spread = SparseTransfer(skin_mesh, index[ids[self.in_spread]], falloff=falloff)
+        # bounded: no skin vertex moves past its controls (a lid's skin past its lash line, a tracker's
+        # errors at neighbouring points amplified between them), see BiharmonicInterpolation
+        self.spread = SparseTransfer(skin_mesh, index[ids[self.in_spread]], falloff=falloff, bounded=True)
         r = mesh.vertices - parts.hinge
         axis = parts.axes[0]
         # turned_vectors' (R - I) r = sin(t) a x r + (1 - cos(t)) a x (a x r), its products kept per vertex

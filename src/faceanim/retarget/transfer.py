@@ -80,7 +80,7 @@ class SparseTransfer:
         it is unstable, see the benchmark).
     kernel, smoothing
         For the two RBF metrics, as for :class:`~faceanim.geometry.rbf.RbfWarp`.
-    falloff
+    falloff, bounded
         For ``surface``: see :class:`~faceanim.geometry.surface.BiharmonicInterpolation`.
 
     Only the target's parts (connected components) that hold a control vertex move; separate parts
@@ -89,14 +89,16 @@ class SparseTransfer:
     """
 
     def __init__(self, target: Mesh, control_vertices, *, metric: str = "surface", kernel: str = "thin_plate",
-                 smoothing: float | None = None, falloff: float = 0.25):
+                 smoothing: float | None = None, falloff: float = 0.25, bounded: bool = False):
         if metric not in METRICS:
             raise ValueError(f"metric must be one of {', '.join(METRICS)}, got {metric!r}")
+        if bounded and metric != "surface":
+            raise ValueError(f"bounded is for the surface metric only, got metric {metric!r}")
         ids = as_index_array(control_vertices, "control_vertices", upper=len(target.vertices))
         part, kept = _moving_part(target, ids)
         local = np.searchsorted(kept, ids)
         if metric == "surface":
-            local_operator = BiharmonicInterpolation(part, local, falloff=falloff).operator
+            local_operator = BiharmonicInterpolation(part, local, falloff=falloff, bounded=bounded).operator
         elif metric == "geodesic":
             local_operator = SurfaceRbf(part, local, kernel=kernel, smoothing=smoothing).operator
         else:
