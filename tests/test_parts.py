@@ -278,6 +278,28 @@ def test_lips_pressed_into_the_teeth_are_kept_in_front_of_them(ict_lined):
     assert depths[False] > 0.05 and depths[True] < 0.01, depths
 
 
+def test_the_spread_is_biharmonic_round_the_lips_and_bounded_beyond(ict):
+    """Bounded everywhere, a few triangles turned where the lips meet in some wide smiles and the fold
+    relaxer flattened the smile; round the lips the spread keeps the biharmonic field's weights, and
+    round the eyes (a lid's skin past its lash line) it is bounded: no negative weight there."""
+    from faceanim.landmarks import EYE_LIDS, LIP_OUTER, landmark_names
+
+    target, parts = ict
+    deformer = PartsDeformer(target, parts, np.unique(list(target.points.values())), relax=False)
+    operator = deformer.spread.operator
+    names = landmark_names(478)
+
+    def rows_near(points, radius):
+        centres = target.mesh.vertices[target.ids([names[i] for i in points])]
+        skin = target.mesh.vertices[deformer.skin_ids]
+        close = np.linalg.norm(skin[:, None] - centres[None], axis=2).min(axis=1) < radius
+        return operator[np.flatnonzero(close)]
+
+    lids = [i for upper, lower in EYE_LIDS.values() for i in upper + lower]
+    assert (rows_near(lids, 0.5) >= 0).all()
+    assert (rows_near(LIP_OUTER, 0.1 * target.mouth_width) < -1e-3).any()
+
+
 def test_frames_in_chunks_give_what_all_frames_at_once_give(ict):
     """The deformer makes any run of frames on its own (memory bounded by the chunk, not the motion);
     the chunking changes nothing, folds relaxed and lips pushed included."""

@@ -12,12 +12,13 @@ F_right)``. How far an eye is shut is read from its tracked lids: its closure (1
 points' opening over their opening at rest) counted from :data:`OPEN_BELOW` up, 0 to 1. ``F`` is a
 vector per point and eye, in ES0, fitted by least squares to the tracker's error on ICT identities
 that wink and blink (never the round trip's tuning or reporting pairs; ``data/blink_coupling.json``,
-made by ``benchmarks/blink_bias.py``, which says how). On real faces, with no truth, real blinks move
-the tracked points the way the table says (the benchmark's test against random open stretches: a
-gain of 0.76 round the eyes and 1.8 far from them, where the null stays within 0.1 and 0.7), so the
-coupling is the tracker's, not the renders'. The closure is read from the
-lids as they are tracked, after the other corrections; a frame whose lids are not seen (NaN) is left
-as it is.
+made by ``benchmarks/blink_bias.py``, which says how), on the eyes that shut and that the tracker saw
+at least half shut: an eye it hardly saw shut has a large error at a small closure and pulled the fit
+up. On real faces, with no truth, real blinks move the tracked points the way the table says (the
+benchmark's test against random open stretches: a gain of 1.5 round the eyes and 1.5 far from them,
+where the null stays within 0.2 and 1.0), so the coupling is the tracker's, not the renders'. The
+closure is read from the lids as they are tracked, after the other corrections; a frame whose lids are
+not seen (NaN) is left as it is.
 """
 
 from __future__ import annotations
@@ -119,10 +120,10 @@ class BlinkCoupling:
         bring the lids past each other, its height taken back on both, in proportion, to where they
         meet (or to where the tracker had them, if it had them past each other already).
 
-        The table is fitted on ICT identities some of whose eyes the tracker hardly sees shut (tall
-        eyes half shut by ICT's blink, read as 0.1-0.2 of it), so at a lid it asks for more than a
-        shut eye can give: on the shared videos' fullest blinks the lids passed each other by 0.2-0.6
-        of the eye's opening. A target's lids are held short of meeting anyway (at :data:`faceanim.retarget.lids.SHUT`
+        The table can ask more of a lid than a shut eye can give: made before the eyes the tracker
+        hardly saw shut were left out of its fit (tall eyes half shut by ICT's blink, read as 0.1-0.2
+        of it), it had the lids pass each other by 0.2-0.6 of the eye's opening on the shared videos'
+        fullest blinks. A target's lids are held short of meeting anyway (at :data:`faceanim.retarget.lids.SHUT`
         of its opening); the motion, its FAPs and its exports are held here, where the lids meet."""
         for upper, lower in _LID_PAIRS:
             top, bottom = self.neutral[upper, 1], self.neutral[lower, 1]

@@ -115,7 +115,7 @@ class BiharmonicInterpolation:
     falloff : float
         Falloff length as a fraction of the controls' RMS distance from their centroid (so it does
         not depend on units); 0 for plain biharmonic interpolation.
-    bounded : bool
+    bounded : bool or (V,) float64
         True: no vertex moves past its controls. Each vertex's weights are the biharmonic field's made
         non-negative (:func:`eased_weights`) and scaled back to the sum the vertex had, so it takes a
         weighted mean of the controls' values (faded by the falloff as before), a uniform motion is
@@ -124,7 +124,9 @@ class BiharmonicInterpolation:
         line coming down and the skin above it held, came down past the lash line (1.06 cm against 0.91,
         ICT round trip, seed 3), and a tracker's independent errors at neighbouring points are amplified
         there rather than averaged (the median vertex of an ICT face sums 0.17 of negative weight, some
-        vertices 2). Without the lobes the field is smooth but less so. False: the biharmonic field.
+        vertices 2). Without the lobes the field is smooth but less so. An array: per vertex, the share of
+        its weights so bounded (the rest biharmonic), for a field bounded in some places only. False: the
+        biharmonic field.
 
     The ``(V, K)`` operator is computed once with a sparse factorisation; ``__call__`` maps values
     ``(K, C)`` or ``(T, K, C)`` to ``(V, C)`` or ``(T, V, C)``.
@@ -136,7 +138,7 @@ class BiharmonicInterpolation:
     array([1.])
     """
 
-    def __init__(self, mesh: Mesh, control_vertices, *, falloff: float = 0.25, bounded: bool = False):
+    def __init__(self, mesh: Mesh, control_vertices, *, falloff: float = 0.25, bounded=False):
         ids = _distinct_ids(mesh, control_vertices)
         falloff = float(falloff)
         if not np.isfinite(falloff) or falloff < 0:
@@ -168,13 +170,15 @@ class BiharmonicInterpolation:
             Qff = Q[free_ids][:, free_ids].tocsc()
             Qfc = Q[free_ids][:, ids].toarray()
             operator[free_ids] = -splu(Qff).solve(Qfc)
-        if bounded:
-            operator = _nonnegative_weights(operator)
+        share = np.broadcast_to(np.asarray(bounded, dtype=np.float64), (V,))
+        if not (np.isfinite(share).all() and (share >= 0).all() and (share <= 1).all()):
+            raise ValueError("bounded must be a bool or shares in [0, 1], one per vertex")
+        if share.any():
+            operator = (1.0 - share[:, None]) * operator + share[:, None] * _nonnegative_weights(operator)
             operator[ids] = 0.0
             operator[ids, np.arange(len(ids))] = 1.0  # exact at the controls, whatever the rounding
         self.control_vertices = ids
         self.falloff = falloff
-        self.bounded = bool(bounded)
         self.operator = operator
 
     def __call__(self, values) -> np.ndarray:

@@ -23,6 +23,7 @@ from ..geometry.mesh import Mesh
 from ..geometry.project import project_points
 from ..geometry.relax import FoldRelaxer
 from ..geometry.topology import open_edges, submesh
+from ..landmarks import LIP_INNER, LIP_OUTER, landmark_names
 from ..mpeg4 import ANGLE_UNIT, fap_table
 from ..mpeg4.fapstream import FapStream, held
 from ..parts import FaceParts
@@ -70,6 +71,30 @@ def eye_rotations(stream: FapStream, parts: FaceParts) -> np.ndarray:
     return out
 
 
+#: Of the mouth's width: the skin spreads its controls' motion as the biharmonic field within the first of
+#: the lips' control points, bounded (no vertex past its controls) beyond the second, and blended between.
+LIPS_UNBOUNDED = (0.25, 0.5)
+
+
+def _bounded_share(target: Target, skin_vertices: np.ndarray) -> np.ndarray:
+    """``(S,)`` per skin vertex, how far its spread is bounded (see ``BiharmonicInterpolation``).
+
+    Bounded, no skin vertex moves past its controls: the biharmonic field's negative lobes carried a lid's
+    skin past its lash line and amplified a tracker's errors between neighbouring points (on the ICT round
+    trip's tuning seeds, blink 0.623 -> 0.582 and brows 0.537 -> 0.525 bounded everywhere). At the lips the
+    bounded field turned a few triangles on the line where the lips meet in some wide smiles, and the fold
+    relaxer then flattened the smile (round-trip pairs 109 and 309 with no video: the smile's worst 5% of
+    frames 0.43 -> 0.60), so round the lips it stays biharmonic. A target without named lip points is
+    bounded everywhere."""
+    lips = [n for n in (landmark_names(478)[i] for i in LIP_OUTER + LIP_INNER) if n in target.points]
+    width = target.mouth_width
+    if not lips or width <= 0:
+        return np.ones(len(skin_vertices))
+    near, far = (width * share for share in LIPS_UNBOUNDED)
+    distance, _ = cKDTree(target.mesh.vertices[target.ids(lips)]).query(skin_vertices)
+    return np.clip((distance - near) / (far - near), 0.0, 1.0)
+
+
 class PartsDeformer:
     """Moves a target's vertices, part by part, from displacements of its control vertices.
 
@@ -107,9 +132,8 @@ class PartsDeformer:
         self.parts = parts
         self.skin_ids = skin_ids
         self.controls = ids
-        # bounded: no skin vertex moves past its controls (a lid's skin past its lash line, a tracker's
-        # errors at neighbouring points amplified between them), see BiharmonicInterpolation
-        self.spread = SparseTransfer(skin_mesh, index[ids[self.in_spread]], falloff=falloff, bounded=True)
+        self.spread = SparseTransfer(skin_mesh, index[ids[self.in_spread]], falloff=falloff,
+                                     bounded=_bounded_share(target, skin_mesh.vertices))
         r = mesh.vertices - parts.hinge
         axis = parts.axes[0]
         # turned_vectors' (R - I) r = sin(t) a x r + (1 - cos(t)) a x (a x r), its products kept per vertex

@@ -81,7 +81,8 @@ class SparseTransfer:
     kernel, smoothing
         For the two RBF metrics, as for :class:`~faceanim.geometry.rbf.RbfWarp`.
     falloff, bounded
-        For ``surface``: see :class:`~faceanim.geometry.surface.BiharmonicInterpolation`.
+        For ``surface``: see :class:`~faceanim.geometry.surface.BiharmonicInterpolation` (``bounded`` per
+        vertex of ``target`` when an array).
 
     Only the target's parts (connected components) that hold a control vertex move; separate parts
     without one (teeth, eyeballs) keep still. The ``(V, K)`` matrix is computed once; ``__call__``
@@ -89,16 +90,17 @@ class SparseTransfer:
     """
 
     def __init__(self, target: Mesh, control_vertices, *, metric: str = "surface", kernel: str = "thin_plate",
-                 smoothing: float | None = None, falloff: float = 0.25, bounded: bool = False):
+                 smoothing: float | None = None, falloff: float = 0.25, bounded=False):
         if metric not in METRICS:
             raise ValueError(f"metric must be one of {', '.join(METRICS)}, got {metric!r}")
-        if bounded and metric != "surface":
+        if np.any(bounded) and metric != "surface":
             raise ValueError(f"bounded is for the surface metric only, got metric {metric!r}")
         ids = as_index_array(control_vertices, "control_vertices", upper=len(target.vertices))
         part, kept = _moving_part(target, ids)
         local = np.searchsorted(kept, ids)
         if metric == "surface":
-            local_operator = BiharmonicInterpolation(part, local, falloff=falloff, bounded=bounded).operator
+            shares = bounded if np.ndim(bounded) == 0 else np.asarray(bounded, dtype=np.float64)[kept]
+            local_operator = BiharmonicInterpolation(part, local, falloff=falloff, bounded=shares).operator
         elif metric == "geodesic":
             local_operator = SurfaceRbf(part, local, kernel=kernel, smoothing=smoothing).operator
         else:
