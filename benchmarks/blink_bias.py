@@ -73,9 +73,11 @@ def with_table(table):
     blinkcoupling.coupling_field = lambda: table
 
 
-def performed(model, A, weights, folder: Path):
+def performed(model, A, weights, folder: Path, *, floor: bool = True):
     """A performing ``weights`` rendered as the round trip's source and captured (neutral frames 0-9):
-    the motion held in memory, A's placed points, and A's true displacements ``(T, V, 3)``."""
+    the motion held in memory, A's placed points, and A's true displacements ``(T, V, 3)``. ``floor``:
+    the capture's noise floor, applied after the table (:mod:`faceanim.capture.noisefloor`); the table is
+    learned from the motion without it."""
     from faceanim.capture.stream import captured
     from faceanim.geometry import read_mesh
     from faceanim.motion import Motion
@@ -92,7 +94,7 @@ def performed(model, A, weights, folder: Path):
     with Renderer(512, 512) as renderer, video_writer(video, 25, 512, 512) as write:
         for d in deltas:
             write(renderer.render(labelled.with_vertices(A), camera, positions=A + d, **style))
-    m = captured(video, neutral=(0, 10), folder=folder).motion
+    m = captured(video, neutral=(0, 10), folder=folder, floor=floor).motion
     held = Motion(m.names, m.neutral, np.asarray(m.displacements), m.pose, m.fps, m.fapu, valid=m.valid)
     return held, place_landmarks(model.mesh(A))[:468], deltas
 
@@ -118,7 +120,7 @@ def learn_table(model, seeds) -> tuple[np.ndarray, list[int], float, float]:
         A = model.random_identities(np.random.default_rng(seed))[0]
         with tempfile.TemporaryDirectory() as tmp:
             try:
-                motion, placed, deltas = performed(model, A, script(model, segments=WINKS), Path(tmp))
+                motion, placed, deltas = performed(model, A, script(model, segments=WINKS), Path(tmp), floor=False)
             except InputError as exc:  # a source the portrait's points cannot be placed on is left out
                 print(f"seed {seed}: left out ({exc})", flush=True)
                 continue
@@ -212,7 +214,7 @@ def real_rows(table, rng) -> list[str]:
     counts = []
     for video in sorted(VIDEOS.glob("*.mp4")):
         with tempfile.TemporaryDirectory() as tmp:
-            motion = captured(video, folder=tmp).motion
+            motion = captured(video, folder=tmp, floor=False).motion  # real blinks' movement as tracked
             moved = np.asarray(motion.displacements)[:, :468]
         eyes = closure(moved, motion.neutral)
         shut = np.nan_to_num(eyes.mean(axis=1))

@@ -87,7 +87,7 @@ def clip_figures(clip: str, stills: list | None, *, speed: bool = True) -> dict:
 
     path = VIDEOS / f"{clip}.mp4"
     track = track_video(path, progress=False)
-    motion = motion_of_track(track)
+    motion = motion_of_track(track, floor=False)  # as speaker textures
     images = all_frames(path)
     T = len(motion)
     cut = int(BUILD_SHARE * T)

@@ -188,7 +188,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         for clip in CLIPS:
             video = VIDEOS / f"{clip}.mp4"
-            capture = captured_source(video)
+            capture = captured_source(video, floor=False)  # as speaker track
             motion = capture.motion
             T = len(motion)
             frames = np.stack([image for _, image in open_frames(video)])

@@ -262,7 +262,7 @@ def main() -> None:
 
     settings = {}
     for clip in CLIPS:
-        motion = capture_motion(VIDEOS / f"{clip}.mp4", progress=False)
+        motion = capture_motion(VIDEOS / f"{clip}.mp4", progress=False, floor=False)  # as speaker build
         faps = motion_to_faps(motion)
         everything = np.flatnonzero(motion.valid)
         model = build_model(motion, parameters=6)

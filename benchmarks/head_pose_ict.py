@@ -139,7 +139,7 @@ def turn_score(track) -> tuple[float, float, float, float]:
     from faceanim.capture.headframe import _skull_weights, track_to_motion
     from faceanim.landmarks import FEATURE_POINT_LANDMARK
 
-    motion = track_to_motion(track, neutral=(0, 10))
+    motion = track_to_motion(track, neutral=(0, 10), floor=False)  # the static points' movement as tracked
     pose = np.asarray(motion.pose)
     linear = pose[:, :3, :3] / np.cbrt(np.linalg.det(pose[:, :3, :3]))[:, None, None]
     u, _, vt = np.linalg.svd(linear)

@@ -269,7 +269,7 @@ def main() -> None:
     results, earlier, corrections, leaks = {}, {}, {}, {}
     speed_model = None
     for clip in CLIPS:
-        motion = capture_motion(VIDEOS / f"{clip}.mp4", progress=False)
+        motion = capture_motion(VIDEOS / f"{clip}.mp4", progress=False, floor=False)  # as speaker build
         faps = motion_to_faps(motion)
         for fold, train, test in folds(motion):
             for method in METHODS:

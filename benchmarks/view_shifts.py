@@ -60,7 +60,7 @@ def main(argv=None) -> int:
         if not track.usable.all():
             print(f"seed {seed}: frames without a face, left out", flush=True)
             continue
-        motion = headframe.track_to_motion(track, neutral=(0, 10))
+        motion = headframe.track_to_motion(track, neutral=(0, 10), floor=False)  # the view's smaller shifts too
         f = headframe.view_features(np.asarray(motion.pose))
         features.append(f - f[:10].mean(axis=0))
         moves.append(np.asarray(motion.displacements).reshape(len(f), -1))

@@ -148,7 +148,8 @@ def make_textures(video, output, *, model, frames=None, neutral=None, smoothing:
     if source.suffix.lower() == ".npz":
         raise InputError(f"{video}: speaker textures needs the video itself (its frames give the textures)")
     # the streamed capture (landmarks and head-frame points on disk, read back a run of frames at a time)
-    capture = captured_source(source, neutral=neutral, smoothing=smoothing, progress=progress, folder=output.parent)
+    capture = captured_source(source, neutral=neutral, smoothing=smoothing, progress=progress, folder=output.parent,
+                              floor=False)
     motion = capture.motion
     chosen = np.arange(len(motion)) if frames is None else np.arange(*parse_frames(frames, len(motion)))
 

@@ -153,7 +153,8 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     mesh = analysis_mesh(speaker)
     shown = as_progress(progress)
 
-    capture = captured_source(video, neutral=neutral, smoothing=smoothing, progress=shown, folder=output.parent)
+    capture = captured_source(video, neutral=neutral, smoothing=smoothing, progress=shown, folder=output.parent,
+                              floor=False)
     motion = capture.motion
     missing = [n for n in speaker.names if n not in set(motion.names)]
     if missing:

@@ -58,7 +58,9 @@ def build_speaker(video, output, *, params: int = 6, frames=None, method: str = 
         raise InputError(f"--method {method}: choose {' or '.join(METHODS)}")
     if frames is not None:
         parse_frames(frames)  # the form is checked before the video is tracked
-    motion = capture_motion(video, neutral=neutral, smoothing=smoothing, progress=progress)
+    # Without the noise floor: a linear model fitted over many frames averages the tracker's noise itself, and
+    # the floor, not linear in the motion, would bend it (faceanim.capture.noisefloor). The same in analyse.
+    motion = capture_motion(video, neutral=neutral, smoothing=smoothing, progress=progress, floor=False)
     chosen = np.arange(len(motion)) if frames is None else np.arange(*parse_frames(frames, len(motion)))
     try:
         model = build_model(motion, parameters=params, frames=chosen, method=method)
@@ -88,7 +90,7 @@ def analyse_speech(video, output, *, model, params_csv=None, neutral=None, smoot
     check_outputs({"-o": (output, ".fap"), "--params-csv": (params_csv, ".csv")},
                   inputs={"VIDEO": video, "--model": model, "--neutral": neutral})
     speaker = read_speaker(model)
-    motion = capture_motion(video, neutral=neutral, smoothing=smoothing, progress=progress)
+    motion = capture_motion(video, neutral=neutral, smoothing=smoothing, progress=progress, floor=False)
     missing = [n for n in speaker.names if n not in set(motion.names)]
     if missing:
         raise InputError(f"{model}: the model moves points the capture of {video} lacks ({', '.join(missing[:5])}"

@@ -20,13 +20,14 @@ from .jaw import correct_jaw_depth
 from .lidskin import follow_lid_skin
 from .metric import canonical_face, metric_geometry_frames
 from .neutral import relaxed_window
+from .noisefloor import NoiseFloor
 from .scores import scores_across_filled_frames
 from .smoothing import OneEuro, OneEuroFilter
 from .track import Track
 
 __all__ = ["head_frame", "head_frame_into", "settle", "displacements_from", "mouth_gap", "track_to_motion",
-           "restabilise", "rest_window", "brow_drive", "blink_slide", "score_drives", "view_features", "unview",
-           "DEFAULT_SMOOTHING"]
+           "restabilise", "rest_window", "brow_drive", "blink_slide", "score_drives", "unscored_drives",
+           "view_features", "unview", "DEFAULT_SMOOTHING"]
 
 DEFAULT_SMOOTHING = OneEuro()
 
@@ -362,12 +363,13 @@ def score_drives(blendshapes, names, times, rest: np.ndarray, fapu, usable: np.n
     return [drive for drive in drives if drive is not None]
 
 
-def blink_coupling(rest: np.ndarray, fapu) -> list:
-    """The drive that needs no scores, applied after the scores' drives: what the tracker moves with a
-    blink that the face does not, taken out (:class:`~.blinkcoupling.BlinkCoupling`); empty for a
-    layout without MediaPipe's face mesh."""
-    coupling = BlinkCoupling.of_face(rest, fapu)
-    return [] if coupling is None else [coupling]
+def unscored_drives(rest: np.ndarray, fapu, *, floor: bool = True) -> list:
+    """The drives that need no scores, applied after the scores' drives, in order: what the tracker moves
+    with a blink that the face does not, taken out (:class:`~.blinkcoupling.BlinkCoupling`), then, with
+    ``floor``, the motion under the tracker's noise floor dropped (:class:`~.noisefloor.NoiseFloor`); empty
+    for a layout without MediaPipe's face mesh."""
+    drives = (BlinkCoupling.of_face(rest, fapu), NoiseFloor.of_face(rest, fapu) if floor else None)
+    return [drive for drive in drives if drive is not None]
 
 
 def displacements_from(points: np.ndarray, rest: np.ndarray, usable: np.ndarray) -> np.ndarray:
@@ -380,7 +382,7 @@ def displacements_from(points: np.ndarray, rest: np.ndarray, usable: np.ndarray)
 
 
 def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTHING,
-                    neutral_points=None, scores: bool = True) -> Motion:
+                    neutral_points=None, scores: bool = True, floor: bool = True) -> Motion:
     """The tracked face's motion, held in memory (a long video streams through
     :func:`faceanim.capture.stream.captured` instead).
 
@@ -400,8 +402,14 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
     scores : bool
         Brow heights from the tracker's blendshape scores where the track has them
         (:mod:`.browscores`), and the eyes' sideways slide in a blink taken out (:mod:`.blinkslide`);
-        False keeps the tracked movement (the lid skin's and the jaw's corrections and the blink's
-        coupling taken out, :mod:`.blinkcoupling`, need no scores and still apply).
+        False keeps the tracked movement (the lid skin's and the jaw's corrections, the blink's
+        coupling taken out, :mod:`.blinkcoupling`, and the noise floor, :mod:`.noisefloor`, need no
+        scores and still apply).
+    floor : bool
+        Drop each point's motion under the tracker's noise floor (:mod:`.noisefloor`): for a motion that
+        is shown, where a still face should stay still. A linear model fitted over many frames (the
+        speaker's) is better off without it: it averages the noise away itself, and the floor is not
+        linear in the motion.
     """
     usable = track.usable
     # One (T, L, 3) array, made here and then changed in place, step by step: a long video's
@@ -414,7 +422,7 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
     displacements = displacements_from(points, rest, usable)
     drives = score_drives(track.blendshapes, track.blendshape_names, track.times, rest, fapu, usable, window,
                           smoothing) if scores else []
-    for drive in drives + blink_coupling(rest, fapu):
+    for drive in drives + unscored_drives(rest, fapu, floor=floor):
         drive.apply(displacements, 0)
     displacements.flags.writeable = False  # handed over: the Motion takes it uncopied
     return Motion(landmark_names(len(rest)), rest, displacements, pose, track.fps, fapu, valid=usable)

@@ -22,12 +22,12 @@ from ..landmarks import landmark_names
 from ..motion import Motion
 from .headframe import (
     DEFAULT_SMOOTHING,
-    blink_coupling,
     displacements_from,
     head_frame_into,
     rest_window,
     score_drives,
     settle,
+    unscored_drives,
 )
 from .smoothing import OneEuro
 from .track import FrameFacts, Track, _Rows, fill_short_gaps, track_frames
@@ -81,13 +81,14 @@ class _StoreRows:
 
 
 def captured(source, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTHING, neutral_points=None,
-             progress=None, folder=None, model=None, max_gap: float = 0.2, scores: bool = True) -> Capture:
+             progress=None, folder=None, model=None, max_gap: float = 0.2, scores: bool = True,
+             floor: bool = True) -> Capture:
     """The :class:`Capture` of a video (or of a :class:`~faceanim.capture.track.Track` already made),
     its landmarks and head-frame points in temporary files in ``folder`` (the system's temporary
     folder by default). The files have no name in any folder; their space is freed when the capture
     and everything that reads its motion (a streamed animation) are let go.
 
-    ``neutral``, ``smoothing``, ``neutral_points`` and ``scores`` as for
+    ``neutral``, ``smoothing``, ``neutral_points``, ``scores`` and ``floor`` as for
     :func:`~faceanim.capture.headframe.track_to_motion`; ``progress`` and ``model`` as for
     :func:`~faceanim.capture.track.track_video`. The motion's frames are the ones
     ``track_to_motion(track_video(source))`` gives, to the float32 precision of the head-frame
@@ -127,7 +128,7 @@ def captured(source, *, neutral=None, smoothing: OneEuro | None = DEFAULT_SMOOTH
     window = rest_window(points, usable, fps, neutral, neutral_points)
     rest, fapu = settle(points, pose, usable, fps, neutral=window, neutral_points=neutral_points)
     drives = score_drives(blendshapes, names, times, rest, fapu, usable, window, smoothing) if scores else []
-    drives += blink_coupling(rest, fapu)
+    drives += unscored_drives(rest, fapu, floor=floor)
 
     def frames(start: int, stop: int) -> np.ndarray:
         moved = displacements_from(points[start:stop], rest, usable[start:stop])
