@@ -12,11 +12,13 @@ how far it holds:
 1. **Learn.** ICT identities drawn from the ``--train`` seeds (none of them a tuning or reporting
    pair) are rendered as ``roundtrip_ict.py`` renders its source (the photo's skin), winking left,
    then right, then blinking, and captured as ``animate`` does (neutral frames 0-9) without the
-   table. Per landmark, the tracker's error against the truth at the points placed on the face (in
-   ES0) is fitted by least squares as ``shut_left * F_left + shut_right * F_right``, how far each eye is
-   shut read from the tracked lids as the capture reads it (:func:`~faceanim.capture.blinkcoupling.shutting`),
+   table and without the noise floor that comes after it (:mod:`faceanim.capture.noisefloor`). Per
+   landmark, the tracker's error against the truth at the points placed on the face (in ES0) is fitted
+   by least squares as ``shut_left * F_left + shut_right * F_right``, how far each eye is shut read
+   from the tracked lids as the capture reads it (:func:`~faceanim.capture.blinkcoupling.shutting`),
    on the eyes that shut in truth and that the tracker saw at least half shut (``TRUTH_SHUT``, ``SEEN_SHUT``).
-2. **On the round trip** (tuning seeds only): the motion route without the table and with it.
+2. **On the round trip** (tuning seeds only): the motion route without the table and with it (both with the
+   noise floor, as `animate` captures).
 3. **On real faces**, where no truth is known: every clean blink of the shared videos (both eyes'
    mean closure past 0.5, open again, under 0.2, within half a second, blinks 0.3 s apart or more):
    the landmarks' movement at the blink's peak against the open frames on either side. If the

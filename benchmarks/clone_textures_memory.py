@@ -38,7 +38,7 @@ from faceanim.speaker.texturing import build_appearance
 from faceanim.speakerclone import _frames_of
 
 video, model, folder = sys.argv[1:4]
-capture = captured_source(video, folder=folder)
+capture = captured_source(video, folder=folder, floor=False)  # as speaker textures
 motion = capture.motion
 points = motion.neutral + motion.displacements  # every frame held
 landmarks = capture.landmarks[:][..., :2]

@@ -5,7 +5,8 @@
 ICT identities of tuning seeds (never the reporting seeds 100 and up), each rendered at rest (512 px,
 ``roundtrip_ict``'s portrait colouring) with the head turning, the camera still (``head_pose_ict``'s
 turn: yaw to +-20 degrees and back, then pitch to +-12 and back), tracked and captured as ``animate``
-does (neutral frames 0-9) without the correction this table makes. The face does not move in its
+does (neutral frames 0-9) without the correction this table makes and without the noise floor
+(``capture.noisefloor``, which would drop the view's smaller shifts). The face does not move in its
 head frame, so every displacement the capture reports is what the view adds: MediaPipe reconstructs
 a face differently from different angles. A ridge fit (over every identity's frames) maps the
 angle the camera sees the face at (``capture.headframe.view_features``: the direction to the camera in

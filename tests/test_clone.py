@@ -435,7 +435,7 @@ def test_speaker_textures_and_render_on_a_real_clip(tmp_path, capsys):
     from faceanim.inputs import captured_source
     from faceanim.speakerclone import _frames_of
 
-    capture = captured_source(video, folder=tmp_path)
+    capture = captured_source(video, folder=tmp_path, floor=False)  # as the job captures
     motion = capture.motion
     held, _ = build_appearance(read_speaker(model), names=motion.names, points=motion.neutral + motion.displacements,
                                landmarks=capture.landmarks[:][..., :2], pose=motion.pose, valid=motion.valid,

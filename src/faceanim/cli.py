@@ -27,14 +27,16 @@ def _target_arguments(p) -> None:
 
 
 def _capture_arguments(p, *, image: bool = True, filters: str = "the One Euro temporal filter",
-                       floor: bool = True) -> None:
+                       floor_help: bool = True) -> None:
     """``--neutral`` (where the face is at rest) and ``--no-filter``, for the commands that track a video;
-    ``floor``: the command's capture drops the motion under the tracker's noise floor, which
-    ``--no-filter`` turns off too."""
+    ``floor_help``: say that ``--no-filter`` turns the noise floor off too, for the commands whose capture
+    has it (not the speaker's, whose jobs capture without it)."""
+    from .capture.noisefloor import NOISE_FLOOR
+
     p.add_argument("--neutral", metavar="FRAME|START:END" + ("|IMAGE" if image else ""),
                    help="the face at rest (default: the most relaxed half second, found automatically)")
-    if floor:
-        filters += (" and the noise floor (a point's motion under 0.015 of the eyes' separation dropped; "
+    if floor_help:
+        filters += (f" and the noise floor (a point's motion under {NOISE_FLOOR:g} of the eyes' separation dropped; "
                     "lips and irises kept)")
     p.add_argument("--no-filter", action="store_true", help=f"turn {filters} off")
 
@@ -148,7 +150,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--method", choices=("guided", "pca"), default="guided",
                    help="guided (default): the jaw first, then the lips' protrusion, opening, upper lip, lower lip, "
                         "corners; pca: principal components (see benchmarks/results/speaker_model.md)")
-    _capture_arguments(p, image=False, floor=False)
+    _capture_arguments(p, image=False, floor_help=False)
     p = speaker.add_parser("analyse", help="a video's FAPs as the speaker model explains them",
                            description="Track VIDEO, fit the model's parameters to each frame's mobile points and "
                                        "write the FAPs of the model's points.")
@@ -156,7 +158,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--model", required=True, metavar="SPEAKER.npz")
     p.add_argument("-o", "--output", required=True, metavar="SPEECH.fap")
     p.add_argument("--params-csv", metavar="PARAMS.csv", help="also write the parameters per frame")
-    _capture_arguments(p, image=False, floor=False)
+    _capture_arguments(p, image=False, floor_help=False)
     p = speaker.add_parser("textures", help="add the clone's key postures, textures and colour model to a model",
                            description="Track VIDEO (the speaker's), fit its camera and the head's rigid motion, "
                                        "choose three key postures (rest, open, rounded), re-project their textures "
@@ -169,7 +171,7 @@ def _parser() -> argparse.ArgumentParser:
                                                          "give the model's build frames)")
     p.add_argument("--camera-out", metavar="CAM.txt", help="also write the fitted 3x4 camera")
     p.add_argument("--motion-out", metavar="MOTION.csv", help="also write the head's rigid motion per frame")
-    _capture_arguments(p, image=False, floor=False)
+    _capture_arguments(p, image=False, floor_help=False)
     p = speaker.add_parser("render", help="draw the clone video-realistically from parameters",
                            description="Draw the speaker's clone (a model with textures) at each frame's parameters: "
                                        "the key textures mixed pixel by pixel with weights that follow the posture.")
@@ -211,7 +213,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--raster", choices=("gl", "numpy"),
                    help="the lip-probability renderer (default gl where it can run, else numpy; see "
                         "benchmarks/results/clone_tracking.md)")
-    _capture_arguments(p, image=False, floor=False)
+    _capture_arguments(p, image=False, floor_help=False)
 
     p = commands.add_parser("avatar", help="a textured 3D face from a portrait",
                             description="Make an animatable 3D face from a portrait photo: the tracker's face "

@@ -62,11 +62,11 @@ def _check_extent(mesh, path) -> None:
                          f"{extent[1]:.3g} across it; a face needs a surface, not a line or a point")
 
 
-def capture_motion(source, *, neutral=None, smoothing=True, progress=None, floor=True):
+def capture_motion(source, *, neutral=None, smoothing=True, progress=None, floor=None):
     """The Motion of a video (or of a saved ``.npz`` track), held in memory. ``neutral``: ``FRAME``,
     ``START:END`` or an image of the same face at rest; found automatically when None. ``smoothing``:
     the One Euro filter; ``floor``: drop the motion under the tracker's noise floor
-    (:mod:`faceanim.capture.noisefloor`); both are off without ``smoothing`` (``--no-filter``). (The jobs
+    (:mod:`faceanim.capture.noisefloor`), None as ``smoothing`` says (``--no-filter`` turns both off). (The jobs
     stream a long video through :func:`captured_source` instead.)"""
     from .capture.track import Track, track_video
     from .progress import as_progress
@@ -80,7 +80,7 @@ def capture_motion(source, *, neutral=None, smoothing=True, progress=None, floor
     return motion_of_track(recorded, neutral=neutral, smoothing=smoothing, floor=floor)
 
 
-def captured_source(source, *, neutral=None, smoothing=True, progress=None, folder=None, floor=True):
+def captured_source(source, *, neutral=None, smoothing=True, progress=None, folder=None, floor=None):
     """The streamed :class:`~faceanim.capture.stream.Capture` of a video (or of a saved ``.npz``
     track): :func:`capture_motion`'s motion with the landmarks kept in unnamed temporary files in
     ``folder`` (the job's output folder), so that memory does not grow with the video's length.
@@ -95,7 +95,7 @@ def captured_source(source, *, neutral=None, smoothing=True, progress=None, fold
         _check_neutral_image(neutral)  # before the video is tracked, not after
     given = Track.load(source) if source.suffix.lower() == ".npz" else source
     capture = captured(given, smoothing=OneEuro() if smoothing else None, progress=as_progress(progress),
-                       folder=folder, floor=floor and smoothing, **_neutral_choice(neutral, given))
+                       folder=folder, floor=_floor(floor, smoothing), **_neutral_choice(neutral, given))
     _report_gaps(source, capture.gaps())
     return capture
 
@@ -149,10 +149,10 @@ def _check_neutral_image(neutral) -> None:
         raise InputError(f"--neutral {choice}: no such image, or frame number (FRAME or START:END)")
 
 
-def motion_of_track(recorded, *, neutral=None, smoothing=True, floor=True):
+def motion_of_track(recorded, *, neutral=None, smoothing=True, floor=None):
     """The Motion of a Track: its neutral from ``FRAME``, ``START:END``, an image of the face at rest,
-    or found automatically (None); ``smoothing``: the One Euro filter; ``floor``: the noise floor (both
-    off without ``smoothing``)."""
+    or found automatically (None); ``smoothing``: the One Euro filter; ``floor``: the noise floor (None:
+    as ``smoothing`` says)."""
     from .capture.headframe import head_frame, track_to_motion
     from .capture.neutral import parse_neutral
     from .capture.smoothing import OneEuro
@@ -169,7 +169,13 @@ def motion_of_track(recorded, *, neutral=None, smoothing=True, floor=True):
             points, _ = head_frame(still)
             neutral_points = points[0]
     return track_to_motion(recorded, neutral=window, smoothing=OneEuro() if smoothing else None,
-                           neutral_points=neutral_points, floor=floor and smoothing)
+                           neutral_points=neutral_points, floor=_floor(floor, smoothing))
+
+
+def _floor(floor, smoothing) -> bool:
+    """Whether a job's capture has the noise floor: as asked, or (None) as its filter is, so that
+    ``--no-filter`` gives the tracked motion with neither."""
+    return bool(smoothing) if floor is None else bool(floor)
 
 
 def target_unit(target, source: str) -> float:

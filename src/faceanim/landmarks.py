@@ -17,7 +17,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from types import MappingProxyType
 
-__all__ = ["EYE_LIDS", "FEATURE_POINT_LANDMARK", "IBUG68_LANDMARK", "LIP_OUTER", "LIP_INNER", "landmark_names"]
+__all__ = ["EYE_LIDS", "FEATURE_POINT_LANDMARK", "IBUG68_LANDMARK", "LIP_OUTER", "LIP_INNER", "LIP_BETWEEN",
+           "landmark_names"]
 
 FEATURE_POINT_LANDMARK: Mapping[str, int] = MappingProxyType({  # read-only: a shared table
     # chin and inner lips
@@ -69,6 +70,11 @@ LIP_OUTER: tuple[int, ...] = (61, 185, 40, 39, 37, 0, 267, 269, 270, 409, 291, 3
                               146)
 LIP_INNER: tuple[int, ...] = (78, 191, 80, 81, 82, 13, 312, 311, 310, 415, 308, 324, 318, 402, 317, 14, 87, 178, 88,
                               95)
+# The points on the red of the lips between the two contours (inside the outer one on MediaPipe's canonical
+# face, not on either contour), in index order.
+LIP_BETWEEN: tuple[int, ...] = (11, 12, 15, 16, 38, 41, 42, 62, 72, 73, 74, 76, 77, 85, 86, 89, 90, 96, 179, 180,
+                                183, 184, 268, 271, 272, 292, 302, 303, 304, 306, 307, 315, 316, 319, 320, 325,
+                                403, 404, 407, 408)
 
 
 def landmark_names(count: int) -> tuple[str, ...]:

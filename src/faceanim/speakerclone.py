@@ -148,6 +148,7 @@ def make_textures(video, output, *, model, frames=None, neutral=None, smoothing:
     if source.suffix.lower() == ".npz":
         raise InputError(f"{video}: speaker textures needs the video itself (its frames give the textures)")
     # the streamed capture (landmarks and head-frame points on disk, read back a run of frames at a time)
+    # Without the noise floor, as the model was built (speaker build): the parameters are fitted to its points.
     capture = captured_source(source, neutral=neutral, smoothing=smoothing, progress=progress, folder=output.parent,
                               floor=False)
     motion = capture.motion

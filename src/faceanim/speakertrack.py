@@ -153,6 +153,7 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     mesh = analysis_mesh(speaker)
     shown = as_progress(progress)
 
+    # Without the noise floor, as the model was built (speaker build): its parameters start from the points.
     capture = captured_source(video, neutral=neutral, smoothing=smoothing, progress=shown, folder=output.parent,
                               floor=False)
     motion = capture.motion

@@ -59,7 +59,8 @@ def build_speaker(video, output, *, params: int = 6, frames=None, method: str = 
     if frames is not None:
         parse_frames(frames)  # the form is checked before the video is tracked
     # Without the noise floor: a linear model fitted over many frames averages the tracker's noise itself, and
-    # the floor, not linear in the motion, would bend it (faceanim.capture.noisefloor). The same in analyse.
+    # the floor, not linear in the motion, would bend it (faceanim.capture.noisefloor). The speaker's other
+    # commands capture the same way, as the model was built.
     motion = capture_motion(video, neutral=neutral, smoothing=smoothing, progress=progress, floor=False)
     chosen = np.arange(len(motion)) if frames is None else np.arange(*parse_frames(frames, len(motion)))
     try:

@@ -407,9 +407,10 @@ def track_to_motion(track: Track, *, neutral=None, smoothing: OneEuro | None = D
         scores and still apply).
     floor : bool
         Drop each point's motion under the tracker's noise floor (:mod:`.noisefloor`): for a motion that
-        is shown, where a still face should stay still. A linear model fitted over many frames (the
-        speaker's) is better off without it: it averages the noise away itself, and the floor is not
-        linear in the motion.
+        is shown, where a still face should stay still. Independent of ``smoothing`` here; the jobs
+        (:mod:`faceanim.inputs`) turn it off with the filter (``--no-filter``) and in the speaker's
+        commands, whose linear model, fitted over many frames, averages the noise away itself and was
+        built without the floor (which is not linear in the motion).
     """
     usable = track.usable
     # One (T, L, 3) array, made here and then changed in place, step by step: a long video's
