@@ -29,6 +29,16 @@ def test_the_garrote_drops_what_is_under_the_floor_and_shortens_the_rest_by_tau_
     np.testing.assert_array_equal(garrote(d[:3], 0.0), d[:3])  # no floor, nothing dropped
 
 
+def test_the_lips_red_is_every_face_mesh_point_inside_the_outer_contour_and_on_neither_contour():
+    from skimage.measure import points_in_poly
+
+    from faceanim.capture.metric import canonical_face
+
+    face = canonical_face().vertices[:468]
+    inside = np.flatnonzero(points_in_poly(face[:, :2], face[list(LIP_OUTER), :2]))
+    assert LIP_BETWEEN == tuple(sorted(set(inside) - set(LIP_OUTER) - set(LIP_INNER)))
+
+
 def test_the_lips_and_irises_stay_as_tracked_and_every_other_point_is_shrunk():
     assert len(LIPS) == 80  # the two contours and the red between them
     rng = np.random.default_rng(0)

@@ -31,13 +31,11 @@ def _capture_arguments(p, *, image: bool = True, filters: str = "the One Euro te
     """``--neutral`` (where the face is at rest) and ``--no-filter``, for the commands that track a video;
     ``floor_help``: say that ``--no-filter`` turns the noise floor off too, for the commands whose capture
     has it (not the speaker's, whose jobs capture without it)."""
-    from .capture.noisefloor import NOISE_FLOOR
-
     p.add_argument("--neutral", metavar="FRAME|START:END" + ("|IMAGE" if image else ""),
                    help="the face at rest (default: the most relaxed half second, found automatically)")
     if floor_help:
-        filters += (f" and the noise floor (a point's motion under {NOISE_FLOOR:g} of the eyes' separation dropped; "
-                    "lips and irises kept)")
+        # In words, not NOISE_FLOOR's number: the CLI imports only the jobs (../shared/ARCHITECTURE.md).
+        filters += " and the noise floor (a point's motion under about a millimetre dropped; lips and irises kept)"
     p.add_argument("--no-filter", action="store_true", help=f"turn {filters} off")
 
 
