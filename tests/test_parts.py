@@ -300,6 +300,43 @@ def test_the_spread_is_biharmonic_round_the_lips_and_bounded_beyond(ict):
     assert (rows_near(LIP_OUTER, 0.1 * target.mouth_width) < -1e-3).any()
 
 
+def test_above_the_face_meshs_top_the_spread_fades_out_and_the_scalp_is_held_whatever_the_controls(ict, monkeypatch):
+    """A brow raise is not carried on up the forehead past where anything is measured: over SCALP_FADE
+    ES0 above the highest of MediaPipe's points placed on the target the spread's rows fall to nothing;
+    at and below it they are as before. The top is the face mesh's, so a target driven through its
+    MPEG-4 points alone (the brows their highest) keeps its forehead moving."""
+    from faceanim.landmarks import landmark_names
+    from faceanim.retarget import deform
+
+    target, parts = ict
+    up = parts.axes[1]
+    top = (target.mesh.vertices[target.ids([n for n in landmark_names(468) if n in target.points])] @ up).max()
+    fade = deform.SCALP_FADE * target.fapu.es0
+    for names in (list(target.points), [n for n in target.points if not n.startswith("mp")]):
+        ids = np.unique(target.ids(names))
+        held = PartsDeformer(target, parts, ids, relax=False)
+        with monkeypatch.context() as patched:
+            patched.setattr(deform, "_scalp_hold", lambda *_: None)
+            free = PartsDeformer(target, parts, ids, relax=False)
+        height = target.mesh.vertices[held.skin_ids] @ up
+        below, beyond = height <= top, height >= top + fade
+        between = ~below & ~beyond
+        assert below.sum() > 1000 and beyond.sum() > 100 and between.sum() > 10  # ICT's scalp lies above its face
+        np.testing.assert_array_equal(held.spread.operator[below], free.spread.operator[below])
+        np.testing.assert_array_equal(held.spread.operator[beyond], 0.0)
+        free_rows, held_rows = np.abs(free.spread.operator[between]), np.abs(held.spread.operator[between])
+        moved = free_rows.sum(axis=1) > 1e-9
+        share = held_rows[moved].sum(axis=1) / free_rows[moved].sum(axis=1)
+        np.testing.assert_allclose(share, 1.0 - (height[between][moved] - top) / fade, rtol=1e-9)
+        raise_ = np.zeros((1, len(ids), 3))
+        raise_[..., 1] = 0.5
+        positions = held(raise_, [0.0], fit_weights=False)[0]
+        scalp = held.skin_ids[beyond]
+        np.testing.assert_array_equal(positions[scalp], target.mesh.vertices[scalp])
+    feature_points = np.unique(target.ids([n for n in target.points if not n.startswith("mp")]))
+    assert (target.mesh.vertices[feature_points] @ up).max() < top - 0.5 * fade  # the brows: well under the top
+
+
 def test_frames_in_chunks_give_what_all_frames_at_once_give(ict):
     """The deformer makes any run of frames on its own (memory bounded by the chunk, not the motion);
     the chunking changes nothing, folds relaxed and lips pushed included."""

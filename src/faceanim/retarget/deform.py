@@ -76,6 +76,34 @@ def eye_rotations(stream: FapStream, parts: FaceParts) -> np.ndarray:
 LIPS_UNBOUNDED = (0.25, 0.5)
 
 
+#: Of the face's ES0: above the top of its face mesh (MediaPipe's points placed on it) the skin's spread
+#: fades out over this height, and the skin beyond is held (:func:`_scalp_hold`).
+SCALP_FADE = 0.15
+
+
+def _scalp_hold(target: Target, skin_vertices: np.ndarray, up: np.ndarray) -> np.ndarray | None:
+    """``(S,)`` per skin vertex, the share of the spread's motion it takes: 1 up to the height (along
+    ``up``) of the highest of the target's points placed as MediaPipe's face mesh, falling linearly to 0
+    over :data:`SCALP_FADE` x its ES0 above it; None for a target without those points or a FAPU.
+
+    Above the face mesh's top (MediaPipe's forehead top, 1.7-1.9 cm above the brows on ICT's faces)
+    nothing is measured, and the spread carried a brow raise on up the forehead, decaying with its
+    falloff: 0.07-0.26 cm up at 2-6 cm above the brows on the round trip's tuning seeds, where ICT's brow
+    raise moves the skin 0.1-0.15 cm down and 0.2 forward (the forehead bunches; the hairline does not rise
+    with the brows, the frontalis pulling the brows up towards it). Held instead, past a fade of about a
+    centimetre: the tuning seeds' brows 0.499 -> 0.464 (motion route; no video 0.374 -> 0.341), every
+    segment else within 0.002, every seed better; a fade from half a centimetre below the top 0.465, over
+    2 cm 0.470 (``benchmarks/roundtrip_ict.py``, scratch runs 2026-11-28). The top is the face mesh's, not
+    the highest control's: driven through its MPEG-4 feature points alone (``--via faps``), whose highest
+    are the brows, the forehead between brows and hairline was held too, and seed 3's brows went 0.50 ->
+    0.68 through the FAPs."""
+    names = [name for name in landmark_names(468) if name in target.points]
+    if not names or target.fapu is None or not target.fapu.es0 > 0:
+        return None
+    top = float((target.mesh.vertices[target.ids(names)] @ up).max())
+    return np.clip(1.0 - (skin_vertices @ up - top) / (SCALP_FADE * target.fapu.es0), 0.0, 1.0)
+
+
 def _bounded_share(target: Target, skin_vertices: np.ndarray) -> np.ndarray:
     """``(S,)`` per skin vertex, how far its spread is bounded (see ``BiharmonicInterpolation``).
 
@@ -134,6 +162,9 @@ class PartsDeformer:
         self.controls = ids
         self.spread = SparseTransfer(skin_mesh, index[ids[self.in_spread]], falloff=falloff,
                                      bounded=_bounded_share(target, skin_mesh.vertices))
+        held = _scalp_hold(target, skin_mesh.vertices, parts.axes[1])
+        if held is not None:  # the scalp, above the face the points were placed on, held past a short fade
+            self.spread.operator *= held[:, None]
         r = mesh.vertices - parts.hinge
         axis = parts.axes[0]
         # turned_vectors' (R - I) r = sin(t) a x r + (1 - cos(t)) a x (a x r), its products kept per vertex
