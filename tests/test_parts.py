@@ -335,6 +335,12 @@ def test_above_the_face_meshs_top_the_spread_fades_out_and_the_scalp_is_held_wha
         np.testing.assert_array_equal(positions[scalp], target.mesh.vertices[scalp])
     feature_points = np.unique(target.ids([n for n in target.points if not n.startswith("mp")]))
     assert (target.mesh.vertices[feature_points] @ up).max() < top - 0.5 * fade  # the brows: well under the top
+    from faceanim.target import Target
+
+    mpeg4_only = Target(target.mesh, {n: v for n, v in target.points.items() if not n.startswith("mp")}, target.fapu)
+    skin = target.mesh.vertices[held.skin_ids]
+    assert deform._scalp_hold(mpeg4_only, skin, up) is None  # no face mesh placed: nothing says where it ends
+    assert deform._scalp_hold(Target(target.mesh, target.points, None), skin, up) is None  # no FAPU: no yardstick
 
 
 def test_frames_in_chunks_give_what_all_frames_at_once_give(ict):

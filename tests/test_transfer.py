@@ -60,6 +60,25 @@ def test_sparse_transfer_is_exact_at_its_controls_for_many_frames():
         SparseTransfer(mesh, ids)(frames[:, :5])
 
 
+def test_a_faded_transfer_gives_each_vertex_its_share_of_the_motion_in_float64_and_float32_alike():
+    from faceanim.retarget.transfer import FAST_FRAMES
+
+    mesh = bumpy_sphere()
+    ids = np.arange(0, len(mesh.vertices), 7)
+    frames = np.random.default_rng(3).normal(size=(FAST_FRAMES, len(ids), 3))
+    transfer = SparseTransfer(mesh, ids)
+    full = transfer(frames)  # long enough for the float32 operator, which is made here
+    one = transfer(frames[:1])  # a single frame: the float64 product
+    share = np.linspace(0.0, 1.0, len(mesh.vertices))
+    transfer.fade(share)
+    np.testing.assert_allclose(transfer(frames), full * share[None, :, None], atol=1e-5)  # not the stale float32
+    np.testing.assert_allclose(transfer(frames[:1]), one * share[None, :, None], atol=1e-12)
+    with pytest.raises(ValueError, match=r"share must lie in \[0, 1\]"):
+        transfer.fade(np.full(len(mesh.vertices), 1.5))
+    with pytest.raises(ValueError, match="share"):
+        transfer.fade(np.ones(3))
+
+
 @pytest.mark.parametrize("source_ids, target_ids, match", [
     ([0, 1, 2], [0, 1], "must pair up, got 3 source and 2 target ids"),
     ([0, 1, 1], [0, 1, 2], r"source ids must be distinct; repeated: \[1\]"),

@@ -79,12 +79,16 @@ LIPS_UNBOUNDED = (0.25, 0.5)
 #: Of the face's ES0: above the top of its face mesh (MediaPipe's points placed on it) the skin's spread
 #: fades out over this height, and the skin beyond is held (:func:`_scalp_hold`).
 SCALP_FADE = 0.15
+_FOREHEAD_TOP = 10  # MediaPipe's face-mesh point at the top of the forehead's middle
 
 
 def _scalp_hold(target: Target, skin_vertices: np.ndarray, up: np.ndarray) -> np.ndarray | None:
     """``(S,)`` per skin vertex, the share of the spread's motion it takes: 1 up to the height (along
     ``up``) of the highest of the target's points placed as MediaPipe's face mesh, falling linearly to 0
-    over :data:`SCALP_FADE` x its ES0 above it; None for a target without those points or a FAPU.
+    over :data:`SCALP_FADE` x its ES0 above it; None for a target without a FAPU or without the face
+    mesh's forehead top (MediaPipe's point 10): where some of MediaPipe's points carry MPEG-4 names
+    (:func:`~faceanim.landmarks.landmark_names`), a target given its feature points alone has those, and
+    its highest, the brows, would hold the forehead.
 
     Above the face mesh's top (MediaPipe's forehead top, 1.7-1.9 cm above the brows on ICT's faces)
     nothing is measured, and the spread carried a brow raise on up the forehead, decaying with its
@@ -97,8 +101,9 @@ def _scalp_hold(target: Target, skin_vertices: np.ndarray, up: np.ndarray) -> np
     the highest control's: driven through its MPEG-4 feature points alone (``--via faps``), whose highest
     are the brows, the forehead between brows and hairline was held too, and seed 3's brows went 0.50 ->
     0.68 through the FAPs."""
-    names = [name for name in landmark_names(468) if name in target.points]
-    if not names or target.fapu is None or not target.fapu.es0 > 0:
+    mesh_names = landmark_names(468)
+    names = [name for name in mesh_names if name in target.points]
+    if mesh_names[_FOREHEAD_TOP] not in target.points or target.fapu is None or not target.fapu.es0 > 0:
         return None
     top = float((target.mesh.vertices[target.ids(names)] @ up).max())
     return np.clip(1.0 - (skin_vertices @ up - top) / (SCALP_FADE * target.fapu.es0), 0.0, 1.0)
@@ -164,7 +169,7 @@ class PartsDeformer:
                                      bounded=_bounded_share(target, skin_mesh.vertices))
         held = _scalp_hold(target, skin_mesh.vertices, parts.axes[1])
         if held is not None:  # the scalp, above the face the points were placed on, held past a short fade
-            self.spread.operator *= held[:, None]
+            self.spread.fade(held)
         r = mesh.vertices - parts.hinge
         axis = parts.axes[0]
         # turned_vectors' (R - I) r = sin(t) a x r + (1 - cos(t)) a x (a x r), its products kept per vertex

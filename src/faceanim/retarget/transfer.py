@@ -118,6 +118,15 @@ class SparseTransfer:
             self._fast = Float32Operator(self.operator)
         return self._fast
 
+    def fade(self, share) -> None:
+        """Each target vertex's row scaled by its ``share (V,)`` in [0, 1]: the vertex takes only that share
+        of the motion spread to it (none at 0). In place; the float32 copy is made again on next use."""
+        share = as_array(share, "share", shape=(len(self.operator),))
+        if (share < 0).any() or (share > 1).any():
+            raise ValueError("share must lie in [0, 1]")
+        self.operator *= share[:, None]
+        self._fast = None
+
     def __call__(self, displacements) -> np.ndarray:
         """Displacements ``(V, 3)`` or ``(T, V, 3)`` from control ones ``(K, 3)`` or ``(T, K, 3)``.
 
