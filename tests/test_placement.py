@@ -47,3 +47,18 @@ def test_closed_lids_keep_their_points():
     pixels, depth = _eye_scene(opening=False)
     ids, moved, distance = _lid_margins(pixels, depth, FOCAL)
     assert len(ids) == 0 and moved.shape == (0, 2) and distance.shape == (0,)
+
+
+def test_a_brow_in_front_of_the_upper_lid_is_not_taken_for_its_margin():
+    """A deep-set eye seen face-on: the brow overhangs the upper lid, so the opening's top edge is the brow's,
+    2 in front of the skin (more than a quarter of the eye's width, 1.6). The upper lid's points stay where
+    MediaPipe put them; the lower lid's still go to their margin."""
+    pixels, depth = _eye_scene()
+    rows, cols = np.mgrid[0:depth.shape[0], 0:depth.shape[1]]
+    top = 100 - 12 * np.sqrt(np.clip(1 - ((cols + 0.5 - 100) / 40) ** 2, 0, 1))
+    brow = (depth == SKIN) & (rows + 0.5 < top) & (rows + 0.5 > top - 8) & (np.abs(cols - 100) < 40)
+    depth[brow] = SKIN - 2.0
+    ids, moved, distance = _lid_margins(pixels, depth, FOCAL)
+    _, _, upper, lower = _EYE_LIDS[0]
+    assert sorted(ids.tolist()) == sorted(lower)
+    assert np.allclose(distance, SKIN)

@@ -29,7 +29,10 @@ _LIGHT = (0.0, 1.0, 1.0)
 _UPPER_INNER_LIP = LIP_INNER[1:10]  # between the corners 78 and 308
 _LOWER_INNER_LIP = LIP_INNER[11:]
 _IRIS_START = 468  # 468-472 and 473-477: the irises
-_MIRROR_PAIRS = ((33, 263), (133, 362), (61, 291), (70, 300), (234, 454), (159, 386), (145, 374))
+# Mirror pairs seen face-on, for the left-right check. Not the face's outline (234 / 454 by the ears): there the
+# skin runs along the line of sight, and the point cast back slides centimetres back or forth with a pixel (ICT
+# identities with 0.6 cm between the sides' outlines and well-placed eyes and lips were refused).
+_MIRROR_PAIRS = ((33, 263), (133, 362), (61, 291), (70, 300), (50, 280), (159, 386), (145, 374))
 # Each eye's lid points between its corners (MediaPipe's eye contours): (outer corner, inner corner, upper lid,
 # lower lid), the subject's right eye first.
 _EYE_LIDS = ((33, 133, (246, 161, 160, 159, 158, 157, 173), (7, 163, 144, 145, 153, 154, 155)),
@@ -119,7 +122,8 @@ def place_landmarks(mesh: Mesh, *, size: int = 512, yaws=(0.0, -12.0, 12.0)) -> 
     return ids
 
 
-def _lid_margins(pixels: np.ndarray, depth: np.ndarray, focal: float, *, jump: float = 0.3, reach: float = 0.6):
+def _lid_margins(pixels: np.ndarray, depth: np.ndarray, focal: float, *, jump: float = 0.3, reach: float = 0.6,
+                 front: float = 0.25):
     """Each eye's lid points moved onto the lid margins seen in the skin's depth buffer: ``(ids, pixels (n, 2),
     distances (n,))`` for the lid points moved.
 
@@ -131,7 +135,10 @@ def _lid_margins(pixels: np.ndarray, depth: np.ndarray, focal: float, *, jump: f
     filled; of those regions, the one holding the most of the eye's points. Each lid point then takes, in its
     own pixel column and its run of opening pixels nearest the point, the lid's rim: the skin pixel before the
     greatest step in depth between the run's top (upper lid; its bottom for the lower lid) and its middle, and
-    that pixel's depth; unless that is more than half an eye width from the point. A column the opening does
+    that pixel's depth; unless that is more than half an eye width from the point, or more than ``front`` eye
+    widths nearer the camera than the median skin round the eye (a deep-set eye's upper lid hidden under the
+    brow: the rim seen is the brow's, 1.7-1.9 cm in front of the lid on ICT's sigma-2.5 seed 18, where the
+    point cast back landed on the brow 1.7 cm from the lid's margin). A column the opening does
     not reach, or an eye with no opening (closed lids), keeps its points as they were. (Taking the depth of the
     lid's front just outside the rim instead, 0.3-0.6 cm nearer, put the eyes' points further from ICT's
     landmarks: median over the tuning identities 0.185 -> 0.211 cm, ``benchmarks/placement_ict.py``.)
@@ -154,12 +161,15 @@ def _lid_margins(pixels: np.ndarray, depth: np.ndarray, focal: float, *, jump: f
         if seen.sum() < 0.5 * box.size:
             continue
         # The eye's width in world units: a pixel at distance d along the view axis spans d / focal.
-        step_down = jump * width * float(np.median(box[seen])) / focal
+        round_eye = float(np.median(box[seen]))
+        eye_width = width * round_eye / focal
+        step_down = jump * eye_width
+        nearest_rim = round_eye - front * eye_width
         size = max(int(round(width / 3)), 3)
         nearest_skin = ndimage.minimum_filter(np.where(seen, box, np.inf), size=size, mode="nearest")
         # Deeper than the skin nearby and than the skin round the eye as a whole (the side of the nose and the
         # brow ridge stand in front of the skin beside them, which the first alone would take for an opening).
-        opening = ~seen | ((box > nearest_skin + step_down) & (box > np.median(box[seen]) + step_down))
+        opening = ~seen | ((box > nearest_skin + step_down) & (box > round_eye + step_down))
         opening = ndimage.binary_fill_holes(opening)
         label, count = ndimage.label(opening)
         if not count:
@@ -190,7 +200,7 @@ def _lid_margins(pixels: np.ndarray, depth: np.ndarray, focal: float, *, jump: f
                     continue
                 d = np.minimum(box[span, c], 1e30)
                 edge = span[int(np.argmax(d[1:] - d[:-1]))]
-                if not seen[edge, c] or abs(edge - row) > 0.5 * width:
+                if not seen[edge, c] or abs(edge - row) > 0.5 * width or box[edge, c] < nearest_rim:
                     continue
                 moved_ids.append(i)
                 moved_px.append([pixels[i, 0], lo[1] + edge + 0.5])
