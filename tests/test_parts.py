@@ -306,17 +306,17 @@ def test_above_the_face_meshs_top_the_spread_fades_out_and_the_scalp_is_held_wha
     at and below it they are as before. The top is the face mesh's, so a target driven through its
     MPEG-4 points alone (the brows their highest) keeps its forehead moving."""
     from faceanim.landmarks import landmark_names
-    from faceanim.retarget import deform
+    from faceanim.retarget import deform, spreadshares
 
     target, parts = ict
     up = parts.axes[1]
     top = (target.mesh.vertices[target.ids([n for n in landmark_names(468) if n in target.points])] @ up).max()
-    fade = deform.SCALP_FADE * target.fapu.es0
+    fade = spreadshares.SCALP_FADE * target.fapu.es0
     for names in (list(target.points), [n for n in target.points if not n.startswith("mp")]):
         ids = np.unique(target.ids(names))
         held = PartsDeformer(target, parts, ids, relax=False)
         with monkeypatch.context() as patched:
-            patched.setattr(deform, "_scalp_hold", lambda *_: None)
+            patched.setattr(deform, "scalp_hold", lambda *_: None)
             free = PartsDeformer(target, parts, ids, relax=False)
         height = target.mesh.vertices[held.skin_ids] @ up
         below, beyond = height <= top, height >= top + fade
@@ -339,8 +339,8 @@ def test_above_the_face_meshs_top_the_spread_fades_out_and_the_scalp_is_held_wha
 
     mpeg4_only = Target(target.mesh, {n: v for n, v in target.points.items() if not n.startswith("mp")}, target.fapu)
     skin = target.mesh.vertices[held.skin_ids]
-    assert deform._scalp_hold(mpeg4_only, skin, up) is None  # no face mesh placed: nothing says where it ends
-    assert deform._scalp_hold(Target(target.mesh, target.points, None), skin, up) is None  # no FAPU: no yardstick
+    assert spreadshares.scalp_hold(mpeg4_only, skin, up) is None  # no face mesh placed: nothing says where it ends
+    assert spreadshares.scalp_hold(Target(target.mesh, target.points, None), skin, up) is None  # no FAPU: no yardstick
 
 
 def test_frames_in_chunks_give_what_all_frames_at_once_give(ict):
