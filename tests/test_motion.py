@@ -10,7 +10,7 @@ from faceanim.motion import EYEBALL_RADIUS_ES0, Motion, motion_to_faps
 from faceanim.mpeg4 import Fapu, fap_table
 from faceanim.mpeg4.fapu import HUMAN_ES0
 from faceanim.parts import FaceParts
-from faceanim.retarget.deform import eye_rotations
+from faceanim.retarget.gaze import eye_rotations
 
 FAPU_CM = Fapu(irisd0=1.1, es0=100 * HUMAN_ES0, ens0=4.0, mns0=2.5, mw0=5.0)
 

@@ -14,7 +14,8 @@ from faceanim.geometry.topology import component_labels, open_edges
 from faceanim.mpeg4 import fap_table
 from faceanim.mpeg4.fapstream import FapStream
 from faceanim.parts import face_parts, read_parts_file
-from faceanim.retarget.deform import PartsDeformer, eye_rotations
+from faceanim.retarget.deform import PartsDeformer
+from faceanim.retarget.gaze import eye_rotations
 
 # ICT-FaceKit's vertex ranges (its README): the upper teeth are its first 16 teeth, the lower the next 16.
 ICT_UPPER_TEETH, ICT_LOWER_TEETH = slice(17039, 19247), slice(19247, 21451)

@@ -3,7 +3,7 @@ import pytest
 from conftest import grid_mesh
 
 from faceanim.geometry import Mesh
-from faceanim.geometry.topology import boundary_loops, component_labels
+from faceanim.geometry.topology import boundary_loops, component_labels, harmonic_fill, nearest_neighbour_on
 
 
 def test_boundary_of_a_grid_is_one_counter_clockwise_loop():
@@ -61,3 +61,22 @@ def test_shared_edges_pair_each_inner_edge_with_its_two_triangles_in_the_first_o
     strip = np.array([[0, 1, 2], [2, 1, 3], [2, 3, 4]])
     ends, first, second = shared_edges(strip)
     assert sorted(map(sorted, ends.tolist())) == [[1, 2], [2, 3]] and len(open_edges(strip)) == 5
+
+
+def test_the_harmonic_fill_of_a_fans_centre_is_the_mean_of_its_rim_and_of_a_strip_is_linear():
+    ring = 6
+    fan = np.array([[0, 1 + k, 1 + (k + 1) % ring] for k in range(ring)])
+    np.testing.assert_allclose(harmonic_fill(fan, ring + 1, np.array([0]), np.arange(1, ring + 1)),
+                               np.full((1, ring), 1.0 / ring), atol=1e-8)
+    # A path of edges (degenerate triangles) from 0 to 4 held at its ends: the fill is linear between them,
+    # and a vertex no held vertex reaches (5, apart) holds 0.
+    path = np.array([[0, 1, 1], [1, 2, 2], [2, 3, 3], [3, 4, 4], [5, 5, 5]])
+    fill = harmonic_fill(path, 6, np.array([1, 2, 3, 5]), np.array([0, 4]))
+    np.testing.assert_allclose(fill @ [0.0, 1.0], [0.25, 0.5, 0.75, 0.0], atol=1e-8)
+
+
+def test_nearest_neighbour_on_takes_the_shortest_edge_to_an_allowed_vertex_or_none():
+    vertices = np.array([[0.0, 0, 0], [1, 0, 0], [0, 0.5, 0], [5, 5, 0], [6, 5, 0], [5, 6, 0]])
+    mesh = Mesh(vertices, np.array([[0, 1, 2], [3, 4, 5]]))
+    on = np.array([False, True, True, False, False, False])
+    np.testing.assert_array_equal(nearest_neighbour_on(mesh, np.array([0, 3]), on), [2, -1])

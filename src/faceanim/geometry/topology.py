@@ -1,14 +1,17 @@
-"""Connectivity of a triangle mesh: its connected parts and the ordered loops of its open boundary."""
+"""Connectivity of a triangle mesh: its connected parts, the ordered loops of its open boundary, and what
+follows from the edges alone (nearest neighbours along them, the graph Laplacian's harmonic fill)."""
 
 from __future__ import annotations
 
 import numpy as np
 from scipy import sparse
 from scipy.sparse import csgraph
+from scipy.sparse.linalg import splu
 
 from .mesh import Mesh
 
-__all__ = ["component_labels", "boundary_loops", "open_edges", "shared_edges", "submesh"]
+__all__ = ["component_labels", "boundary_loops", "open_edges", "shared_edges", "submesh", "nearest_neighbour_on",
+           "harmonic_fill"]
 
 
 def component_labels(mesh: Mesh) -> np.ndarray:
@@ -103,3 +106,32 @@ def boundary_loops(triangles) -> list[np.ndarray]:
             loop.append(nxt)
         loops.append(np.array(loop, dtype=np.int64))
     return sorted(loops, key=len, reverse=True)
+
+
+def nearest_neighbour_on(mesh: Mesh, vertices: np.ndarray, on: np.ndarray) -> np.ndarray:
+    """``(N,)`` for each of the sorted ``vertices``, the nearest vertex joined to it by an edge among those
+    ``on`` (``(V,) bool``), or -1 where none is."""
+    e = mesh.edges
+    e = np.vstack([e, e[:, ::-1]])
+    e = e[np.isin(e[:, 0], vertices) & on[e[:, 1]]]
+    out = np.full(len(vertices), -1, dtype=np.int64)
+    if not len(e):
+        return out
+    length = np.linalg.norm(mesh.vertices[e[:, 0]] - mesh.vertices[e[:, 1]], axis=1)
+    e = e[np.lexsort((length, e[:, 0]))]  # by vertex, nearest neighbour first
+    first = np.r_[True, e[1:, 0] != e[:-1, 0]]
+    out[np.searchsorted(vertices, e[first, 0])] = e[first, 1]
+    return out
+
+
+def harmonic_fill(triangles: np.ndarray, count: int, inner, rim) -> np.ndarray:
+    """``(I, R)``: the values at ``inner`` vertices that are the mean of their neighbours' (the graph
+    Laplacian's harmonic fill), given values at the held vertices ``rim``; inner vertices no held vertex
+    reaches hold 0."""
+    edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    edges = np.unique(edges, axis=0)
+    A = sparse.coo_matrix((np.ones(2 * len(edges)), (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
+                          shape=(count, count)).tocsr()
+    L = sparse.diags(np.asarray(A.sum(axis=1)).ravel()) - A
+    L_ii = L[inner][:, inner] + sparse.eye(len(inner)) * 1e-9
+    return -splu(L_ii.tocsc()).solve(L[inner][:, rim].toarray())

@@ -22,53 +22,18 @@ from ..errors import InputError
 from ..geometry.mesh import Mesh
 from ..geometry.project import project_points
 from ..geometry.relax import FoldRelaxer
-from ..geometry.topology import open_edges, submesh
-from ..mpeg4 import ANGLE_UNIT, fap_table
-from ..mpeg4.fapstream import FapStream, held
+from ..geometry.topology import harmonic_fill, nearest_neighbour_on, open_edges, submesh
+from ..mpeg4.fapstream import FapStream
 from ..parts import FaceParts
 from ..parts.jaw import unfolded_jaw_weight
 from ..target import Target
 from .contact import TeethContact, TeethCover
-from .jawturn import fitted_jaw_turns
+from .gaze import eye_rotations
+from .jawturn import JAW_LIMITS, fitted_jaw_turns, jaw_angles
 from .spreadshares import bounded_shares, scalp_hold
 from .transfer import SparseTransfer
 
-__all__ = ["PartsDeformer", "parts_frames", "deform_parts", "jaw_angles", "eye_rotations", "JAW_LIMITS"]
-
-JAW_LIMITS = (-0.05, 0.6)  # radians: a little closing past rest, about 34 degrees open
-GAZE_LIMITS = (0.6, 0.45)  # radians of yaw and pitch: about as far as eyes turn (35 and 25 degrees)
-
-
-def jaw_angles(parts: FaceParts, chin, chin_displacements) -> np.ndarray:
-    """``(T,)`` the jaw's turn (radians, opening positive) that takes the chin ``(3,)`` along its
-    displacements ``(T, 3)``: the change of the chin's angle about the hinge, in the plane across
-    the jaw's axis. Clipped to :data:`JAW_LIMITS`."""
-    x, y, z = parts.axes
-    r = np.asarray(chin, dtype=np.float64) - parts.hinge
-    moved = r + np.asarray(chin_displacements, dtype=np.float64)
-    angle = np.arctan2(moved @ z, moved @ y) - np.arctan2(r @ z, r @ y)
-    angle = (angle + np.pi) % (2 * np.pi) - np.pi
-    return np.clip(angle, *JAW_LIMITS)
-
-
-def eye_rotations(stream: FapStream, parts: FaceParts) -> np.ndarray:
-    """``(T, 2, 3, 3)`` the left and right eyeballs' rotations (model axes) from FAPs 23-26 (a FAP
-    absent from a frame keeps its last value): yaw about the face's +y (positive towards its left),
-    then pitch about +x (positive down), each clipped to :data:`GAZE_LIMITS`."""
-    table = fap_table()
-    values = held(stream)
-    out = np.zeros((len(stream), 2, 3, 3))
-    for k, side in enumerate("lr"):
-        yaw = np.clip(values[:, table.number(f"yaw_{side}_eyeball") - 1] * ANGLE_UNIT, -GAZE_LIMITS[0], GAZE_LIMITS[0])
-        pitch = np.clip(values[:, table.number(f"pitch_{side}_eyeball") - 1] * ANGLE_UNIT,
-                        -GAZE_LIMITS[1], GAZE_LIMITS[1])
-        cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
-        Ry = np.zeros((len(stream), 3, 3))
-        Ry[:, 0, 0], Ry[:, 0, 2], Ry[:, 1, 1], Ry[:, 2, 0], Ry[:, 2, 2] = cy, sy, 1.0, -sy, cy
-        Rx = np.zeros((len(stream), 3, 3))
-        Rx[:, 0, 0], Rx[:, 1, 1], Rx[:, 1, 2], Rx[:, 2, 1], Rx[:, 2, 2] = 1.0, cp, -sp, sp, cp
-        out[:, k] = parts.axes.T @ (Ry @ Rx) @ parts.axes
-    return out
+__all__ = ["PartsDeformer", "parts_frames", "deform_parts"]
 
 
 class PartsDeformer:
@@ -152,7 +117,7 @@ class PartsDeformer:
             across = self.parts.axes[:2]
             gap = ((mesh.vertices[rims] @ across.T)[:, None] - (skin_mesh.vertices[edge] @ across.T)[None]) ** 2
             nearest = edge[np.argmin(gap.sum(axis=2), axis=1)]
-            joined = _nearest_neighbour_on(mesh, rims, self.parts.mask("skin"))
+            joined = nearest_neighbour_on(mesh, rims, self.parts.mask("skin"))
             nearest = np.where(joined >= 0, np.searchsorted(self.skin_ids, joined), nearest)
             corners = np.vstack([corners, np.repeat(nearest[:, None], 3, axis=1)])
             bary = np.vstack([bary, np.tile([1.0, 0.0, 0.0], (len(rims), 1))])
@@ -174,7 +139,7 @@ class PartsDeformer:
                 deep[hanging[~np.isfinite(apart)]] = True
             between, held = np.flatnonzero(socket & ~rim & ~deep), np.flatnonzero((socket & rim) | deep)
             if len(between):
-                fill = _harmonic_fill(socket_triangles, len(mesh.vertices), between, held)
+                fill = harmonic_fill(socket_triangles, len(mesh.vertices), between, held)
                 used = np.abs(fill).max(axis=0) > 0  # most of the deep vertices border nothing that hangs
                 self._hanging = between, held[used], fill[:, used]
 
@@ -404,35 +369,3 @@ def deform_parts(target: Target, parts: FaceParts | None, control_vertices, disp
                  gaze: FapStream | None = None) -> np.ndarray:
     """``(T, V, 3)`` positions, all at once, of :func:`parts_frames`."""
     return parts_frames(target, parts, control_vertices, displacements, gaze)(0, len(displacements))
-
-
-def _nearest_neighbour_on(mesh: Mesh, vertices: np.ndarray, on: np.ndarray) -> np.ndarray:
-    """``(N,)`` for each of the sorted ``vertices``, the nearest vertex joined to it by an edge among those
-    ``on`` (``(V,) bool``), or -1 where none is."""
-    e = mesh.edges
-    e = np.vstack([e, e[:, ::-1]])
-    e = e[np.isin(e[:, 0], vertices) & on[e[:, 1]]]
-    out = np.full(len(vertices), -1, dtype=np.int64)
-    if not len(e):
-        return out
-    length = np.linalg.norm(mesh.vertices[e[:, 0]] - mesh.vertices[e[:, 1]], axis=1)
-    e = e[np.lexsort((length, e[:, 0]))]  # by vertex, nearest neighbour first
-    first = np.r_[True, e[1:, 0] != e[:-1, 0]]
-    out[np.searchsorted(vertices, e[first, 0])] = e[first, 1]
-    return out
-
-
-def _harmonic_fill(triangles: np.ndarray, count: int, inner, rim) -> np.ndarray:
-    """``(I, R)``: the values at ``inner`` vertices that are the mean of their neighbours' (the graph
-    Laplacian's harmonic fill), given values at the held vertices ``rim``; inner vertices no held vertex
-    reaches hold 0."""
-    from scipy import sparse
-    from scipy.sparse.linalg import splu
-
-    edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    edges = np.unique(edges, axis=0)
-    A = sparse.coo_matrix((np.ones(2 * len(edges)), (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
-                          shape=(count, count)).tocsr()
-    L = sparse.diags(np.asarray(A.sum(axis=1)).ravel()) - A
-    L_ii = L[inner][:, inner] + sparse.eye(len(inner)) * 1e-9
-    return -splu(L_ii.tocsc()).solve(L[inner][:, rim].toarray())

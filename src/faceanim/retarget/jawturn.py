@@ -26,7 +26,9 @@ from scipy.optimize import least_squares
 
 from ..parts import FaceParts
 
-__all__ = ["JawTurns", "fitted_jaw_turns", "CHIN_WEIGHT"]
+__all__ = ["JawTurns", "fitted_jaw_turns", "jaw_angles", "CHIN_WEIGHT", "JAW_LIMITS"]
+
+JAW_LIMITS = (-0.05, 0.6)  # radians: a little closing past rest, about 34 degrees open
 
 CHIN_WEIGHT = 0.9  # control points whose skin follows this much of the jaw's turn are taken as on the jaw
 _FITTED_FRAMES = 256  # the widest openings the centre is fitted on (frames read, not the whole motion)
@@ -163,3 +165,15 @@ def _run(displacements, start: int) -> np.ndarray:
 
 
 _CHUNK = 1024  # frames of the motion read at once
+
+
+def jaw_angles(parts: FaceParts, chin, chin_displacements) -> np.ndarray:
+    """``(T,)`` the jaw's turn (radians, opening positive) that takes the chin ``(3,)`` along its
+    displacements ``(T, 3)``: the change of the chin's angle about the hinge, in the plane across
+    the jaw's axis. Clipped to :data:`JAW_LIMITS`."""
+    x, y, z = parts.axes
+    r = np.asarray(chin, dtype=np.float64) - parts.hinge
+    moved = r + np.asarray(chin_displacements, dtype=np.float64)
+    angle = np.arctan2(moved @ z, moved @ y) - np.arctan2(r @ z, r @ y)
+    angle = (angle + np.pi) % (2 * np.pi) - np.pi
+    return np.clip(angle, *JAW_LIMITS)
