@@ -105,7 +105,8 @@ def synthetic(model, appearance, video_frames, tracked, segment, width, height, 
     over the build frames) and over its spread on the segment; and the worst parameter's error over
     its spread when each frame starts at its own truth with :data:`FLOOR_EVALS` evaluations (where the
     cost's minimum lies: what no path or cap can improve). ``supersample``: the analyser's."""
-    from faceanim.speaker.analysis import CloneAnalyser, pose_matrix
+    from faceanim.speaker.analysis import CloneAnalyser
+    from faceanim.speaker.camera import pose_matrix
     from faceanim.speaker.clone import CloneRenderer
 
     truth = tracked.landmark_parameters[segment]
@@ -141,7 +142,8 @@ def overlays(clip, model, appearance, video_frames, tracked, scored, width, heig
     (green) and the landmark-based analysis's (blue)."""
     import cv2
 
-    from faceanim.speaker.analysis import CloneAnalyser, pose_matrix
+    from faceanim.speaker.analysis import CloneAnalyser
+    from faceanim.speaker.camera import pose_matrix
 
     opening, spread = lip_measures(model, tracked.landmark_parameters)
     picks = [scored[np.argmax(opening[scored])], scored[np.argmin(spread[scored])], scored[np.argmax(spread[scored])]]

@@ -13,11 +13,13 @@ from faceanim.errors import InputError
 from faceanim.landmarks import landmark_names
 from faceanim.mpeg4 import Fapu
 from faceanim.speaker import read_speaker, write_speaker
-from faceanim.speaker.analysis import DEFAULT_ANCHOR, MAX_TRIANGLES, CloneAnalyser, analysis_mesh, pose_matrix
+from faceanim.speaker.analysis import DEFAULT_ANCHOR, CloneAnalyser
 from faceanim.speaker.appearance import Appearance, influence_of, posture_points
+from faceanim.speaker.camera import pose_matrix, project_posed
 from faceanim.speaker.colour import ColourModel
 from faceanim.speaker.lipraster import NumpyLipRaster, prefilter, prefilter_block
 from faceanim.speaker.model import SpeakerModel
+from faceanim.speaker.mouthmesh import MAX_TRIANGLES, analysis_mesh
 from faceanim.speakertrack import frame_ranges, track_speaker
 
 LIP, SKIN, MOUTH = np.array([170.0, 55, 70]), np.array([210.0, 165, 135]), np.array([245.0, 240, 230])
@@ -102,10 +104,8 @@ def render_frame(model, appearance, parameters, pose, width, height, *, gain=1.0
     """``(height, width, 3) uint8``: the clone at ``parameters`` and ``pose``, its textures mixed by the
     appearance's weights, over ``background`` (skin), lit by ``gain``; drawn on the analysis mesh (the
     tracker's own model of the image: a noise-free known answer), or on the whole mesh."""
-    from faceanim.speaker.analysis import _project
-
     full = posture_points(model, np.asarray(parameters)[None])[0]
-    xy = _project(np.asarray(appearance.camera), pose, full) * [width, height]
+    xy = project_posed(np.asarray(appearance.camera), pose, full) * [width, height]
     weights = appearance.weights(full)
     image = np.empty((height, width, 3))
     points, triangles = np.arange(len(full)), model.triangles
@@ -341,9 +341,7 @@ def test_the_analysis_mesh_is_small_and_holds_the_lips(clone):
 def _analyser(model, appearance, **options):
     width = 160
     lips = posture_points(model, np.zeros((1, 6)))[0][:12]
-    from faceanim.speaker.analysis import _project
-
-    xy = _project(np.asarray(appearance.camera), np.eye(4), lips) * width
+    xy = project_posed(np.asarray(appearance.camera), np.eye(4), lips) * width
     options.setdefault("raster", "numpy")  # the same pixels everywhere (GL's agreement is tested above)
     return CloneAnalyser(model, appearance, width=width, height=160, mouth_width=float(np.ptp(xy[:, 0])), **options)
 
@@ -743,8 +741,6 @@ def test_the_frames_projection_folded_once_places_the_mesh_as_the_plain_projecti
     (``pixels``), less the compared frame pixel's place in its box pixel (factor 2: the second of 2 x 2,
     a quarter of a box pixel right and down), on either field and under a head turned and moved, to
     rounding."""
-    from faceanim.speaker.analysis import pose_matrix
-
     model, appearance = clone
     pose = pose_matrix(np.array([0.05, -0.08, 0.03, 0.2, -0.1, 0.4]))
     with _analyser(model, appearance, field=field) as analyser:

@@ -124,9 +124,10 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
     from .mpeg4.fapfile import write_fap
     from .progress import as_progress
     from .speaker import read_speaker
-    from .speaker.analysis import CloneAnalyser, analysis_mesh, pose_matrix
+    from .speaker.analysis import CloneAnalyser
     from .speaker.appearance import read_appearance
-    from .speaker.camera import fit_video_camera, register_rigid, rigid_of_pose, to_rigid
+    from .speaker.camera import fit_video_camera, pose_matrix, register_rigid, rigid_of_pose, to_rigid
+    from .speaker.mouthmesh import analysis_mesh
 
     output = Path(output)
     check_outputs({"-o": (output, ".csv"), "--fap": (fap, ".fap"), "--overlay": (overlay, ".mp4"),
@@ -189,9 +190,9 @@ def track_speaker(video, output, *, model, fap=None, overlay=None, motion_out=No
 
     lips = np.vstack([speaker.rest, speaker.static_points])[mesh.points[mesh.outer]]
     first = int(np.flatnonzero(usable)[0])
-    from .speaker.analysis import _project
+    from .speaker.camera import project_posed
 
-    xy = _project(camera, poses[first], lips) * capture.width
+    xy = project_posed(camera, poses[first], lips) * capture.width
     mouth_width = float(np.ptp(xy[:, 0]))
     with CloneAnalyser(speaker, appearance, width=capture.width, height=height, mouth_width=mouth_width,
                        max_evals=int(max_evals), rigid=rigid, raster=raster, field=field, camera=camera,

@@ -8,11 +8,12 @@ interpretation of received FAP streams through it (:class:`SpeakerModel`); kept 
 0.001
 """
 
-from .analysis import CloneAnalyser, analysis_mesh
+from .analysis import CloneAnalyser
 from .appearance import Appearance, read_appearance, write_appearance
 from .build import METHODS, build_model, mobile_names, reconstruction_error
 from .colour import ColourModel
 from .model import DEFAULT_RIDGE, SpeakerModel, fap_measurement
+from .mouthmesh import analysis_mesh
 from .speakerfile import SPEAKER_VERSION, read_speaker, refusals_named, write_speaker
 
 __all__ = ["SpeakerModel", "build_model", "mobile_names", "reconstruction_error", "fap_measurement", "read_speaker",

@@ -31,8 +31,9 @@ from scipy.spatial.transform import Rotation
 from ..errors import FileFormatError, InputError
 from ..validation import as_array
 
-__all__ = ["fit_camera", "project", "to_rigid", "from_rigid", "rigid_of_pose", "register_rigid", "fit_video_camera",
-           "fit_video_camera_runs", "CameraFit", "read_camera", "write_camera"]
+__all__ = ["fit_camera", "project", "project_posed", "to_rigid", "from_rigid", "rigid_of_pose", "pose_matrix",
+           "rigid_transform", "register_rigid", "fit_video_camera", "fit_video_camera_runs", "CameraFit", "read_camera",
+           "write_camera"]
 
 
 def project(camera, points) -> np.ndarray:
@@ -118,6 +119,35 @@ def rigid_of_pose(pose) -> np.ndarray:
     R = U @ Vt
     scale = S.mean(axis=1)
     return to_rigid(R, T[:, :3, 3] / scale[:, None])
+
+
+def project_posed(camera, pose, points) -> np.ndarray:
+    """``(N, 2)`` normalised screen coordinates of head-frame ``points (N, 3)`` moved by the rigid motion
+    ``pose (4, 4)`` into camera space and seen by ``camera (3, 4)``: :func:`project` without its checks,
+    as the analysis calls it for every evaluation."""
+    moved = points @ pose[:3, :3].T + pose[:3, 3]
+    h = moved @ camera[:, :3].T + camera[:, 3]
+    return h[:, :2] / h[:, 2:3]
+
+
+def pose_matrix(rigid) -> np.ndarray:
+    """``(4, 4)`` or ``(T, 4, 4)``: the rigid motion ``rigid (6,)`` or ``(T, 6)`` (:func:`to_rigid`:
+    a rotation vector in radians, a translation in cm) as a matrix."""
+    R, t = from_rigid(rigid)
+    M = np.zeros((*R.shape[:-2], 4, 4))
+    M[..., :3, :3], M[..., :3, 3], M[..., 3, 3] = R, t, 1.0
+    return M
+
+
+def rigid_transform(correction, centre) -> np.ndarray:
+    """(4, 4) the rigid correction ``(rx, ry, rz, tx, ty, tz)`` (a rotation vector in degrees about
+    ``centre (3,)``, then a translation in cm), in the head frame."""
+    c = np.asarray(correction, dtype=np.float64)
+    R = Rotation.from_rotvec(np.radians(c[:3])).as_matrix()
+    M = np.eye(4)
+    M[:3, :3] = R
+    M[:3, 3] = centre - R @ centre + c[3:]
+    return M
 
 
 def moved(points, rigid) -> np.ndarray:
