@@ -16,7 +16,7 @@ import pytest
 from conftest import ROOT, grid_mesh, shared
 from test_cli import write_transfer_files
 
-from faceanim import pipeline
+from faceanim import atomic, pipeline
 from faceanim.atomic import atomic_output, output_group
 from faceanim.cli import main
 from faceanim.errors import InputError
@@ -367,6 +367,72 @@ def test_an_interrupt_a_library_swallows_still_ends_the_job(tmp_path, monkeypatc
     assert main(["fap-info", str(tmp_path / "x.fap")]) == status
     assert capsys.readouterr() == ("", "faceanim: interrupted\n")
     assert snapshot(tmp_path) == {"x.fap": hashlib.sha256(b"the earlier FAPs").hexdigest()}
+
+
+@pytest.mark.parametrize("number, status", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_an_error_a_library_raises_on_the_interrupt_still_ends_the_job_interrupted(tmp_path, monkeypatch, capsys,
+                                                                                  number, status):
+    """A library cut short mid-write by the interrupt raises its own error on the way out (zipfile closed
+    with an entry half-written): the job ends interrupted, one line, no traceback, none of its outputs."""
+    (tmp_path / "x.fap").write_text("the earlier FAPs")
+
+    def job(path):
+        with atomic_output(tmp_path / "x.fap") as tmp:
+            tmp.write_text("new FAPs")
+            try:
+                os.kill(os.getpid(), number)
+                time.sleep(30)  # the handler raises here
+            except BaseException:
+                raise ValueError("Can't close the ZIP file while there is an open writing handle on it. "
+                                 "Close the writing handle before closing the zip.") from None
+        return "a summary"
+
+    monkeypatch.setattr(pipeline, "fap_info", job)
+    assert main(["fap-info", str(tmp_path / "x.fap")]) == status
+    assert capsys.readouterr() == ("", "faceanim: interrupted\n")
+    assert snapshot(tmp_path) == {"x.fap": hashlib.sha256(b"the earlier FAPs").hexdigest()}
+
+
+def test_the_same_error_without_an_interrupt_is_a_bug_shown_as_one(tmp_path, monkeypatch):
+    def job(path):
+        raise ValueError("a contract broken by faceanim's own code")
+
+    monkeypatch.setattr(pipeline, "fap_info", job)
+    with pytest.raises(ValueError, match="contract broken"):
+        main(["fap-info", str(tmp_path / "x.fap")])
+
+
+@pytest.mark.parametrize("folder", [False, True])
+def test_an_interrupt_the_moment_a_temporary_appears_leaves_nothing(tmp_path, monkeypatch, folder):
+    """The signal lands just as the hidden temporary file (or folder) is made, before the caller has
+    been handed it: it is removed all the same."""
+    made = atomic._create
+
+    def interrupted_after(tmp, *, folder):
+        made(tmp, folder=folder)
+        assert tmp.exists()
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(atomic, "_create", interrupted_after)
+    writer = atomic.atomic_folder(tmp_path / "frames") if folder else atomic_output(tmp_path / "x.fap")
+    with pytest.raises(KeyboardInterrupt):
+        with writer:
+            pass
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_temporaries_take_the_usual_permissions(tmp_path):
+    mask = os.umask(0o027)
+    try:
+        with atomic_output(tmp_path / "x.fap") as tmp:
+            assert tmp.name.startswith(".x.fap.") and tmp.suffix == ".fap"
+            tmp.write_text("FAPs")
+        with atomic.atomic_folder(tmp_path / "frames") as work:
+            assert work.name.startswith(".frames.")
+    finally:
+        os.umask(mask)
+    assert (tmp_path / "x.fap").stat().st_mode & 0o777 == 0o640
+    assert (tmp_path / "frames").stat().st_mode & 0o777 == 0o750
 
 
 @pytest.mark.parametrize("number", [signal.SIGINT, signal.SIGTERM])

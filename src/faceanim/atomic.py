@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import contextlib
 import os
+import secrets
 import shutil
-import tempfile
 from contextvars import ContextVar
 from pathlib import Path
 
@@ -81,10 +81,33 @@ def _remove(tmp: Path) -> None:
         tmp.unlink(missing_ok=True)
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+def _make_temporary(made: list[Path], path: Path, suffix: str, *, folder: bool) -> Path:
+    """A new hidden temporary beside ``path`` (``.NAME.XXXXXXXX.SUFFIX``; a folder if ``folder``), with the
+    usual permissions (those the umask leaves, as for any file the user makes).
+
+    Its name goes into ``made`` before it is created: a signal arriving the moment it appears (``faceanim
+    track`` interrupted as it starts writing its track left its hidden temporary file behind when the name
+    was only known once the file was made) still finds it in the caller's clean-up; a name whose file was
+    never made costs that clean-up nothing."""
+    for _ in range(_NAME_TRIES):
+        tmp = path.parent / f".{path.name}.{secrets.token_hex(4)}{suffix}"
+        made.append(tmp)
+        try:
+            _create(tmp, folder=folder)
+            return tmp
+        except FileExistsError:
+            made.pop()  # someone else's: not ours to remove
+    raise FileExistsError(f"{path.parent}: no free name for a temporary file beside {path.name}")
+
+
+def _create(tmp: Path, *, folder: bool) -> None:
+    if folder:
+        os.mkdir(tmp, 0o777)
+    else:
+        os.close(os.open(tmp, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666))
+
+
+_NAME_TRIES = 100
 
 
 @contextlib.contextmanager
@@ -105,17 +128,17 @@ def atomic_output(path, suffix: str | None = None):
     path = Path(path)
     if not path.parent.exists():
         raise FileNotFoundError(f"{path}: the folder {path.parent} does not exist")
-    fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix, dir=path.parent)
-    tmp, handed = Path(name), False
+    made: list[Path] = []
+    handed = False
     try:
-        os.close(fd)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes files private; outputs get the usual permissions
+        tmp = _make_temporary(made, path, suffix or path.suffix, folder=False)
         yield tmp
         _hand_over(tmp, path)
         handed = True
     finally:
         if not handed:
-            tmp.unlink(missing_ok=True)
+            for tmp in made:
+                _remove(tmp)
 
 
 @contextlib.contextmanager
@@ -134,9 +157,10 @@ def atomic_folder(path):
     path = Path(path)
     if not path.parent.exists():
         raise FileNotFoundError(f"{path}: the folder {path.parent} does not exist")
-    work, handed = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent)), False
+    made: list[Path] = []
+    handed = False
     try:
-        os.chmod(work, 0o777 & ~_umask())  # mkdtemp makes folders private
+        work = _make_temporary(made, path, "", folder=True)
         inside = _GROUP.set(None)  # files inside go straight into the temporary folder
         try:
             yield work
@@ -146,4 +170,5 @@ def atomic_folder(path):
         handed = True
     finally:
         if not handed:
-            _remove(work)
+            for work in made:
+                _remove(work)

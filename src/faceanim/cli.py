@@ -410,11 +410,18 @@ def _main(argv) -> int:
                 # outputs unmade.
                 raise Interrupted(received[0])
     except KeyboardInterrupt as exc:  # the group has removed the temporary files and the finished outputs
-        print(("\n" if shown else "") + "faceanim: interrupted", file=sys.stderr)
-        return 128 + getattr(exc, "signum", signal.SIGINT)
-    except (InputError, OSError) as exc:
-        print(f"faceanim: error: {exc}", file=sys.stderr)
-        return 2
+        return _interrupted(shown, getattr(exc, "signum", signal.SIGINT))
+    except Exception as exc:
+        if received:
+            # The interrupt broke a library mid-write, which raised its own error on the way out: in a full
+            # test run, `faceanim track` interrupted while numpy's savez wrote its track ended in a traceback,
+            # zipfile's "... Close the writing handle before closing the zip." The job was still
+            # interrupted, and ends as one.
+            return _interrupted(shown, received[0])
+        if isinstance(exc, (InputError, OSError)):
+            print(f"faceanim: error: {exc}", file=sys.stderr)
+            return 2
+        raise
     if said:
         try:
             print(said, flush=True)
@@ -422,6 +429,11 @@ def _main(argv) -> int:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
             return 128 + signal.SIGPIPE
     return 0
+
+
+def _interrupted(shown: bool, signum: int) -> int:
+    print(("\n" if shown else "") + "faceanim: interrupted", file=sys.stderr)
+    return 128 + signum
 
 
 _SIGNALS = (signal.SIGINT, signal.SIGTERM)

@@ -16,7 +16,7 @@ refuses to replace a file of either name that it did not write, unless ``force``
 from __future__ import annotations
 
 import os
-import tempfile
+import secrets
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -101,12 +101,13 @@ def _check_folder(argument: str, path: Path) -> None:
 def _check_creatable(argument: str, path: Path, folder: Path) -> None:
     """A file can be made in ``folder`` (and is removed at once): permissions alone do not say so for
     /proc, /sys, a read-only mount or a full disk, which would fail only when the output is written."""
+    probe = folder / f".faceanim-probe-{secrets.token_hex(8)}"  # named before it is made: removed whatever interrupts
     try:
-        fd, probe = tempfile.mkstemp(prefix=".faceanim-probe-", dir=folder)
+        os.close(os.open(probe, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
     except OSError as exc:
         raise InputError(f"{argument} {path}: no file can be made in {folder} ({exc.strerror or exc})") from None
-    os.close(fd)
-    os.unlink(probe)
+    finally:
+        probe.unlink(missing_ok=True)
 
 
 def check_output_folder(argument: str, folder) -> Path:
