@@ -154,6 +154,22 @@ def test_leftover_temporaries_are_removed_and_nothing_else(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(theirs + [".smiles_aus.csv.k2x_9abq.csv"])
 
 
+def test_the_temporaries_faceanim_makes_are_the_leftovers_it_knows(tmp_path):
+    """Names made the way faceanim makes them (an output's hidden temporary, a folder probe), not written
+    out by hand: a batch stopped mid-write has them removed."""
+    from faceanim import atomic
+    from faceanim.dataset import remove_leftovers
+    from faceanim.manifest import Video
+    from faceanim.outputs import probe_path
+
+    made: list = []
+    for _ in range(20):
+        atomic._make_temporary(made, tmp_path / "smiles.fap", ".fap", folder=False)
+        probe_path(tmp_path).write_text("x")
+    removed = remove_leftovers(tmp_path, [Video(tmp_path / "smiles.mp4", "smiles")], ("encode",))
+    assert len(removed) == 40 and list(tmp_path.iterdir()) == []
+
+
 def test_progress_over_videos_and_frames(tmp_path):
     import io
 

@@ -393,8 +393,16 @@ def test_an_error_a_library_raises_on_the_interrupt_still_ends_the_job_interrupt
     assert snapshot(tmp_path) == {"x.fap": hashlib.sha256(b"the earlier FAPs").hexdigest()}
 
 
-def test_the_same_error_without_an_interrupt_is_a_bug_shown_as_one(tmp_path, monkeypatch):
+@pytest.mark.parametrize("after_the_interrupt", [False, True])
+def test_an_error_not_raised_by_the_interrupt_is_a_bug_shown_as_one(tmp_path, monkeypatch, after_the_interrupt):
+    """The same error with no interrupt, or after one that was swallowed (not in its context): a traceback."""
     def job(path):
+        if after_the_interrupt:
+            try:
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(30)  # the handler raises here
+            except BaseException:
+                pass
         raise ValueError("a contract broken by faceanim's own code")
 
     monkeypatch.setattr(pipeline, "fap_info", job)

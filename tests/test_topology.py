@@ -80,3 +80,5 @@ def test_nearest_neighbour_on_takes_the_shortest_edge_to_an_allowed_vertex_or_no
     mesh = Mesh(vertices, np.array([[0, 1, 2], [3, 4, 5]]))
     on = np.array([False, True, True, False, False, False])
     np.testing.assert_array_equal(nearest_neighbour_on(mesh, np.array([0, 3]), on), [2, -1])
+    with pytest.raises(ValueError, match="sorted"):
+        nearest_neighbour_on(mesh, np.array([3, 0]), on)

@@ -369,8 +369,9 @@ def main(argv=None) -> int:
     and the operating system's refusals: a missing file, no permission, a full disk) is one line on
     stderr and exit status 2; an interrupt (Ctrl-C, SIGINT, or SIGTERM) removes the job's temporary
     files and whatever outputs it had finished, prints ``faceanim: interrupted`` and returns 130
-    (SIGINT) or 143 (SIGTERM), 128 plus the signal's number as shells do; anything else is a bug in
-    faceanim and shows its traceback. A job's outputs appear together when it ends without error
+    (SIGINT) or 143 (SIGTERM), 128 plus the signal's number as shells do, also when a library the
+    interrupt cut short raises its own error on the way out; anything else is a bug in faceanim and shows
+    its traceback. A job's outputs appear together when it ends without error
     (:func:`faceanim.atomic.output_group`), so a failure or an interrupt leaves none of them, and the
     files that were at their paths before stay as they were (the demo puts each step's outputs in
     place when the step ends, so it loses only the step it was in).
@@ -412,7 +413,7 @@ def _main(argv) -> int:
     except KeyboardInterrupt as exc:  # the group has removed the temporary files and the finished outputs
         return _interrupted(shown, getattr(exc, "signum", signal.SIGINT))
     except Exception as exc:
-        if received:
+        if received and _raised_by_an_interrupt(exc):
             # The interrupt broke a library mid-write, which raised its own error on the way out: in a full
             # test run, `faceanim track` interrupted while numpy's savez wrote its track ended in a traceback,
             # zipfile's "... Close the writing handle before closing the zip." The job was still
@@ -429,6 +430,17 @@ def _main(argv) -> int:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
             return 128 + signal.SIGPIPE
     return 0
+
+
+def _raised_by_an_interrupt(exc: BaseException) -> bool:
+    """Whether ``exc`` was raised while an interrupt was being handled (one is in its context chain)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _interrupted(shown: bool, signum: int) -> int:

@@ -181,7 +181,7 @@ class _Reporter(Quiet):
 
 def _temporary_names(names) -> re.Pattern:
     """The hidden temporaries :mod:`faceanim.atomic` writes outputs ``names`` through
-    (``.NAME.XXXXXXXX.SUFFIX``, ``tempfile``'s 8 random characters), and faceanim's own folder probes
+    (``.NAME.XXXXXXXX.SUFFIX``, 8 random characters: hex now, ``tempfile``'s before), and faceanim's own folder probes
     and frame stores (``.faceanim-probe-XXXXXXXX``, ``.faceanim-frames-XXXXXXXX``)."""
     random = r"[a-z0-9_]{8}"
     ours = [re.escape(f".{name}.") + random + re.escape(Path(name).suffix) for name in names]

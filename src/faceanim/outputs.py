@@ -101,13 +101,23 @@ def _check_folder(argument: str, path: Path) -> None:
 def _check_creatable(argument: str, path: Path, folder: Path) -> None:
     """A file can be made in ``folder`` (and is removed at once): permissions alone do not say so for
     /proc, /sys, a read-only mount or a full disk, which would fail only when the output is written."""
-    probe = folder / f".faceanim-probe-{secrets.token_hex(8)}"  # named before it is made: removed whatever interrupts
+    probe = probe_path(folder)  # named before it is made: removed whatever interrupts
+    ours = True
     try:
         os.close(os.open(probe, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+    except FileExistsError:
+        ours = False  # another's probe: files can be made here
     except OSError as exc:
         raise InputError(f"{argument} {path}: no file can be made in {folder} ({exc.strerror or exc})") from None
     finally:
-        probe.unlink(missing_ok=True)
+        if ours:
+            probe.unlink(missing_ok=True)
+
+
+def probe_path(folder: Path) -> Path:
+    """A new name for a probe file in ``folder``: ``.faceanim-probe-XXXXXXXX``, 8 random hex characters (the
+    pattern :func:`faceanim.dataset.remove_leftovers` knows)."""
+    return folder / f".faceanim-probe-{secrets.token_hex(4)}"
 
 
 def check_output_folder(argument: str, folder) -> Path:

@@ -111,6 +111,9 @@ def boundary_loops(triangles) -> list[np.ndarray]:
 def nearest_neighbour_on(mesh: Mesh, vertices: np.ndarray, on: np.ndarray) -> np.ndarray:
     """``(N,)`` for each of the sorted ``vertices``, the nearest vertex joined to it by an edge among those
     ``on`` (``(V,) bool``), or -1 where none is."""
+    vertices = np.asarray(vertices, dtype=np.int64)
+    if np.any(np.diff(vertices) <= 0):
+        raise ValueError("vertices must be sorted and distinct")
     e = mesh.edges
     e = np.vstack([e, e[:, ::-1]])
     e = e[np.isin(e[:, 0], vertices) & on[e[:, 1]]]

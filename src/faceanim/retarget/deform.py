@@ -6,7 +6,7 @@ interpolation (whose weights are kept non-negative: no vertex moves past its con
 control point lands where the motion puts it, except where that would fold
 the skin (folds are relaxed, :class:`~faceanim.geometry.relax.FoldRelaxer`) or push a lip into the
 teeth (it is pushed back out). The teeth are rigid: the upper set with the skull, the lower set (and
-the tongue) turned by the same jaw. Eyeballs turn about their centres with the gaze. Lashes and other
+the tongue) turned by the same jaw. Eyeballs turn about their centres with the gaze (:mod:`.gaze`). Lashes and other
 lid layers ride on the skin beneath them; a separate socket (a mouth lining, an eye cap) hangs from
 its rim, which rides on the opening's edge. See :mod:`faceanim.parts`.
 """

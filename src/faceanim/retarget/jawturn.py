@@ -15,6 +15,9 @@ behind, where the teeth turn 27 about the condyles), so the centre is kept in a 
 guess, towards the condyles (:data:`_UP_AND_BACK` of the mouth's width up, and as much back). On the
 tuning pairs of ``benchmarks/roundtrip_ict.py`` the lower teeth on the jawOpen frames came 0.83 cm from
 the truth (median over pairs; 1.24 turned about the guess), and 0.54 with the exact motion (1.07).
+
+Where the chin's control points cannot give a centre, :func:`jaw_angles` reads the turn about the parts'
+own hinge off the chin's angle alone. Both keep to :data:`JAW_LIMITS`.
 """
 
 from __future__ import annotations

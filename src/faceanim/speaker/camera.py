@@ -125,8 +125,8 @@ def project_posed(camera, pose, points) -> np.ndarray:
     """``(N, 2)`` normalised screen coordinates of head-frame ``points (N, 3)`` moved by the rigid motion
     ``pose (4, 4)`` into camera space and seen by ``camera (3, 4)``: :func:`project` without its checks,
     as the analysis calls it for every evaluation."""
-    moved = points @ pose[:3, :3].T + pose[:3, 3]
-    h = moved @ camera[:, :3].T + camera[:, 3]
+    posed = points @ pose[:3, :3].T + pose[:3, 3]
+    h = posed @ camera[:, :3].T + camera[:, 3]
     return h[:, :2] / h[:, 2:3]
 
 
