@@ -45,6 +45,11 @@ def test_sides_of_the_openings_on_a_head_with_its_sockets(ict_head):
     assert (side[lm[60:68]] == -1).all()                # the inner lip points are on the mouth's loop
     face = side[:FACE]
     assert (face > 0).mean() < 0.1                      # the face itself is outside, but for the inner lips and lids
+    lined = np.full(len(h["model"].neutral), -9)
+    lined[h["kept"]] = opening_sides(h["part"], h["local"], "ibug68", sided_loop=True)
+    assert (lined[lm[61:64]] == 1).all() and (lined[lm[65:68]] == 2).all()  # each lip's line takes its lip's side
+    assert (lined[lm[[60, 64]]] == -1).all()            # the corners, where the lines meet, stay on both
+    assert (lined[lined != side] > 0).all() and (side[lined != side] == -1).all()  # nothing else changes
 
 
 def test_a_face_without_sockets_has_the_sides_of_the_head_it_was_cut_from(ict_head):

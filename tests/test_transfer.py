@@ -31,6 +31,47 @@ def test_clone_onto_a_shuffled_copy_is_exact():
     assert out.triangles is target.triangles  # the target's own layout is kept
 
 
+def test_a_vertex_the_source_does_not_reach_moves_with_its_neighbours():
+    """A pocket in the target (a vertex pulled 0.4 deep and 0.35 aside, as inside a nostril) has no source
+    surface near it: it takes the mean of its neighbours' motion, not the motion of the far place its
+    projection lands on. Vertices the source reaches keep their exact landing."""
+    from conftest import grid_mesh
+
+    from faceanim.retarget.transfer import unreached_distance
+
+    flat = grid_mesh(11)
+    x, y = flat.vertices[:, 0], flat.vertices[:, 1]
+    source = Mesh(np.c_[x, y, 0.3 * (x - 0.5) ** 2 - 0.2 * (y - 0.5) ** 2], flat.triangles)  # a saddle
+    pocket = 60  # (0.5, 0.5), inside the grid
+    moved = source.vertices.copy()
+    moved[pocket] += [0.35, 0.0, -0.4]
+    target = Mesh(moved, source.triangles)
+    ids = np.array([0, 10, 110, 120, 5, 55, 65, 115])
+    motion = np.zeros((len(source.vertices), 3))
+    motion[:, 2] = source.vertices[:, 0]  # rises with x
+    dense = DenseTransfer(source, target, ControlPairs(ids, ids), register=False, max_angle=180.0)
+    assert np.linalg.norm([0.35, 0.4]) > unreached_distance(source.vertices[ids])
+    assert np.flatnonzero(dense.unreached).tolist() == [pocket]
+    out = dense(motion)
+    neighbours = np.unique(source.edges[(source.edges == pocket).any(axis=1)])
+    neighbours = neighbours[neighbours != pocket]
+    np.testing.assert_allclose(out[pocket], motion[neighbours].mean(axis=0), atol=1e-9)  # 0.5 where it sits
+    others = np.setdiff1d(np.arange(len(source.vertices)), np.r_[pocket, neighbours])
+    np.testing.assert_allclose(out[others], motion[others], atol=1e-9)
+
+
+def test_unreached_parts_without_a_reached_neighbour_keep_still():
+    from scipy import sparse
+
+    from faceanim.retarget.transfer import _filled_from_neighbours
+
+    mesh = Mesh(np.r_[np.eye(3), np.eye(3) + 5], np.array([[0, 1, 2], [3, 4, 5]]))
+    weights = sparse.csr_matrix(np.arange(36, dtype=float).reshape(6, 6))
+    filled = _filled_from_neighbours(mesh, weights, np.array([False, False, False, True, True, True])).toarray()
+    np.testing.assert_array_equal(filled[:3], weights.toarray()[:3])
+    assert not filled[3:].any()
+
+
 def test_mask_limits_motion():
     rng = np.random.default_rng(1)
     source = bumpy_sphere()
@@ -153,11 +194,16 @@ def test_ict_clone_takes_no_motion_across_the_lids_or_lips(ict_case):
     weights = dense.matrix.tocoo()
     own = opening_sides(c["target"].mesh, c["tids"], "ibug68", openings=SIDED["ibug68"],
                         corners=SIDE_CORNERS["ibug68"])
-    for sides in (own, truth):
+    # and a vertex on a lip's (lid's) own line never takes the other lip's motion
+    own_lines = opening_sides(c["target"].mesh, c["tids"], "ibug68", openings=SIDED["ibug68"],
+                              corners=SIDE_CORNERS["ibug68"], sided_loop=True)
+    changed = own_lines != own
+    assert changed.sum() > 100 and (own[changed] == -1).all()  # only the lines' vertices take a side
+    for sides in (own, own_lines, truth):
         across = (weights.data > 1e-9) & (side[weights.col] != sides[weights.row]) & (side[weights.col] != -1) & \
             (sides[weights.row] != -1)
         crossing = len(np.unique(weights.row[across]))
-        if sides is own:
+        if sides is not truth:
             assert crossing == 0  # never across the target's own sides
         else:  # nor across the true ones, but next to the lid lines, where the meshes' loops differ by an edge
             assert crossing < 0.005 * len(truth)  # 90 of 37,280 when written

@@ -196,7 +196,8 @@ def _inside(mesh: Mesh, loop: np.ndarray, outside: np.ndarray, *, depth: bool = 
     return inside, np.where(np.isfinite(hops), heat, np.inf), nearest
 
 
-def opening_sides(mesh: Mesh, control_vertices, layout: str, *, openings=None, corners=None) -> np.ndarray:
+def opening_sides(mesh: Mesh, control_vertices, layout: str, *, openings=None, corners=None,
+                  sided_loop: bool = False) -> np.ndarray:
     """Which side of each opening of the layout every vertex lies on, ``(V,) int64``.
 
     0: outside every opening (the face); ``2k + 1`` and ``2k + 2``: inside opening ``k`` of ``openings``
@@ -210,6 +211,12 @@ def opening_sides(mesh: Mesh, control_vertices, layout: str, *, openings=None, c
     contour) of either corner is labelled -1 too. Behind a corner, where the two sides meet, which side is
     nearer depends on the triangulation (the nearest loop vertex along the edges), so two meshes of one
     face split that patch differently.
+
+    ``sided_loop``: a vertex on a loop takes the side of the contour it lies on (the upper lip's inner
+    line is the upper side) instead of -1, except the loop's two corners, a vertex on both contours and
+    the corners' bands. A target vertex on the upper lip's inner line belongs with the upper lip: left to
+    both sides, one landed on the lower lip's inside and opened with the jaw (``benchmarks/rig_ict.py``,
+    seed 13, the 68 points given: a strand 3.5 cm long across the open mouth).
     """
     ids = np.asarray(control_vertices, dtype=np.int64)
     curves = contour_paths(mesh, ids, layout)
@@ -228,11 +235,20 @@ def opening_sides(mesh: Mesh, control_vertices, layout: str, *, openings=None, c
         lower = at[np.where(nearest >= 0, nearest, 0)] >= first
         side[inside] = np.where(lower[inside], 2 * k + 2, 2 * k + 1)
         side[loop] = -1
+        on_loop = np.zeros(len(mesh.vertices), dtype=bool)
+        if sided_loop:
+            on_second = param >= first
+            upper, lower_loop = np.unique(loop[~on_second]), np.unique(loop[on_second])
+            only_upper, only_lower = np.setdiff1d(upper, lower_loop), np.setdiff1d(lower_loop, upper)
+            side[only_upper], side[only_lower] = 2 * k + 1, 2 * k + 2
+            corner_ids = loop[(param == 0) | (param == first)]  # where the two contours meet
+            side[corner_ids] = -1
+            on_loop[loop] = True
         if corners[k] > 0:
             ends = mesh.vertices[ids[[LAYOUTS[layout][contours[0]][0], LAYOUTS[layout][contours[0]][-1]]]]
             reach = corners[k] * float(np.linalg.norm(ends[1] - ends[0]))
             near = np.linalg.norm(mesh.vertices[:, None] - ends[None], axis=2).min(axis=1) < reach
-            side[inside & near] = -1
+            side[(inside | on_loop) & near] = -1
     return side
 
 
