@@ -14,6 +14,15 @@ def shuffled(mesh, rng):
     return Mesh(mesh.vertices[order], new_index[mesh.triangles]), new_index
 
 
+def stretched_past_truth(mesh, made, truth) -> int:
+    """How many of ``mesh``'s edges the ``made`` positions stretch past 3 times their length in ``truth``
+    (plus half a millimetre on ICT's scale): where neighbours took unlike motions."""
+    e = mesh.edges
+    made_length = np.linalg.norm(made[e[:, 0]] - made[e[:, 1]], axis=1)
+    true_length = np.linalg.norm(truth[e[:, 0]] - truth[e[:, 1]], axis=1)
+    return int((made_length > 3 * true_length + 0.05).sum())
+
+
 def expression_of(mesh, rng):
     bump = np.exp(-((mesh.vertices - [1, 0, 0]) ** 2).sum(1) / 0.3)[:, None]
     return mesh.with_vertices(mesh.vertices + 0.2 * bump * rng.normal(size=3))
@@ -207,6 +216,80 @@ def test_ict_clone_takes_no_motion_across_the_lids_or_lips(ict_case):
             assert crossing == 0  # never across the target's own sides
         else:  # nor across the true ones, but next to the lid lines, where the meshes' loops differ by an edge
             assert crossing < 0.005 * len(truth)  # 90 of 37,280 when written
+
+
+def test_ict_clone_averaged_with_neighbours_leaves_the_lips_smooth(ict_case):
+    """The landings averaged over about 3 mm (2 steps on this subdivided target) where they tear:
+    fewer edges stretched well past the truth's (jagged inner lips), no larger error, and every row
+    still sums to 1 (a translation of the source is carried exactly)."""
+    from faceanim.retarget.transfer import default_smoothing_steps
+
+    c = ict_case
+    target = c["target"].mesh
+    rest = target.vertices
+    pairs = ControlPairs(c["ids"], c["tids"])
+    assert default_smoothing_steps(target, rest[c["tids"]]) == 2
+    made = {}
+    for steps in (None, 0):
+        dense = DenseTransfer(c["source"], target, pairs, smoothing_steps=steps)  # the registration is cached
+        made[steps] = np.stack([dense.matrix @ d for d in c["deltas"]])
+        if steps is None:
+            np.testing.assert_allclose(dense.matrix.sum(axis=1), 1.0, atol=1e-9)
+    jagged = {k: sum(stretched_past_truth(target, rest + m, rest + t) for m, t in zip(v, c["truth"], strict=True))
+              for k, v in made.items()}
+    error = {k: np.median(c["score"](rest + v, rest + c["truth"], rest)) for k, v in made.items()}
+    assert jagged[None] < jagged[0], (jagged, error)
+    assert error[None] <= error[0] * 1.01, (jagged, error)
+
+
+def test_torn_edges_are_those_whose_landings_stretch_past_the_limit():
+    from faceanim.retarget.transfer import TEAR_STRETCH, torn_edges
+
+    vertices = np.array([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]])
+    edges = np.array([[0, 1], [1, 2], [2, 3]])
+    assert not torn_edges(vertices, vertices * 0.5 + 7, edges).any()  # a shrunk, moved copy: all as smooth
+    landings = vertices.copy()
+    landings[2] += [0, TEAR_STRETCH * 2, 0]  # vertex 2 lands far off its neighbours
+    assert torn_edges(vertices, landings, edges).tolist() == [False, True, True]
+
+
+def test_averaging_only_near_a_tear():
+    """Rows more than ``steps`` rings from a torn edge keep their own landing; a copy landing on itself
+    is not averaged at all."""
+    from conftest import grid_mesh
+    from scipy import sparse
+
+    from faceanim.retarget.transfer import _averaged_where_torn
+
+    grid = grid_mesh(11)
+    V = len(grid.vertices)
+    own = sparse.eye(V, format="csr")
+    np.testing.assert_array_equal(_averaged_where_torn(grid, own, grid.vertices, 2, None).toarray(), np.eye(V))
+    surface = grid.vertices.copy()
+    middle = int(np.argmin(np.linalg.norm(grid.vertices - grid.vertices.mean(axis=0), axis=1)))
+    surface[middle] += [0, 0, 1.0]  # the middle vertex lands far above its neighbours
+    averaged = _averaged_where_torn(grid, own, surface, 2, None).toarray()
+    np.testing.assert_allclose(averaged.sum(axis=1), 1.0)
+    rings = np.full(V, np.inf)
+    rings[middle] = 0
+    for ring in range(1, 4):
+        for a, b in grid.edges:
+            for u, v in ((a, b), (b, a)):
+                if rings[u] == ring - 1 and rings[v] > ring:
+                    rings[v] = ring
+    changed = np.flatnonzero(np.abs(averaged - np.eye(V)).sum(axis=1) > 0)
+    assert set(changed) == set(np.flatnonzero(rings <= 2))  # the torn edges' ends and one ring more
+
+
+def test_no_averaging_on_a_coarse_mesh():
+    from conftest import grid_mesh
+
+    from faceanim.retarget.transfer import default_smoothing_steps
+
+    grid = grid_mesh(6)  # edges 0.2 (diagonals 0.28), points spread about 0.5: a twentieth is 0.025
+    assert default_smoothing_steps(grid, grid.vertices) == 0
+    fine = grid_mesh(61)  # edges 1/60, corners 0.71 from the centre: 0.035 / 0.0167 rounds to 2
+    assert default_smoothing_steps(fine, fine.vertices[[0, 60, 3660, 3720]]) == 2
 
 
 def test_ict_surface_interpolation_beats_the_thesis_rbf(ict_case):
