@@ -87,16 +87,9 @@ def direction(model, faces) -> dict[str, list[float]]:
 def direction_generic(model) -> dict[str, float]:
     """The same cosines for the generic route: made on the generic face, carried onto the ICT neutral
     by warping and projection (faceanim express --route generic)."""
-    from faceanim.generic import generic_target
-    from faceanim.retarget.transfer import ControlPairs, DenseTransfer
+    from faceanim.expressions import generic_carrier
 
-    target = ict_face(model, model.neutral).target
-    source = generic_target()
-    shared = [n for n in source.points if n in target.points]
-    pairs = ControlPairs.checked(source.ids(shared), target.ids(shared), len(source.mesh.vertices),
-                                 len(target.mesh.vertices))
-    carry = DenseTransfer(source.mesh, target.mesh, pairs)
-    generic = MuscleFace(source)
+    generic, carry = generic_carrier(ict_face(model, model.neutral).target)
     region = face_region()
     return {code: cosine(carry(expression_field(generic, {code: 1.0}))[region], truth[region])
             for code, truth in ict_table(model).items()}

@@ -163,3 +163,26 @@ def test_aus_reads_the_smile_on_d0(tmp_path):
     smile = values[:, header.index("AU12_r")]
     assert smile[:10].max() < 0.5 and np.median(smile[30:60]) > 1.5
     assert np.median(smile[30:60]) > np.median(values[30:60, header.index("AU15_r")]) + 1.0
+
+
+def test_generic_route_onto_a_whole_head():
+    """ICT-FaceKit's whole head (scalp, neck, ears: most of it far from the face-only generic face) takes
+    the generic route: the registration judges its fit from the generic face lying on the head, and AU 12
+    lifts the mouth's corners."""
+    shared("ict_facekit", "ict_deltas_full.npz")
+    from ict_scenario import load_ict
+
+    from faceanim.expressions import generic_carrier
+    from faceanim.mpeg4.multipie import MULTIPIE68_OF_FEATURE_POINT
+    from faceanim.synth.expression import expression_field
+    from faceanim.target import Target
+
+    model = load_ict()
+    head = Target.from_points(model.mesh(model.neutral),
+                              {name: int(model.landmarks[i]) for name, i in MULTIPIE68_OF_FEATURE_POINT.items()})
+    generic, carry = generic_carrier(head)
+    assert carry.registration.fit < 0.01 * np.ptp(head.mesh.vertices[:, 0])
+    moved = carry(expression_field(generic, {"12": 1.0}))
+    left, right = head.points["8.3"], head.points["8.4"]
+    up = 1 if head.mesh.vertices[head.points["2.1"], 1] < head.mesh.vertices[head.points["4.1"], 1] else -1
+    assert up * moved[left, 1] > 0 and up * moved[right, 1] > 0

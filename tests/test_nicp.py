@@ -65,6 +65,20 @@ def test_the_reverse_term_covers_a_target_that_ends_where_the_source_runs_on():
         NicpOptions(reverse_weight=-1.0)
 
 
+def test_a_source_covering_part_of_the_target_lies_on_it():
+    """A face-only source (the generic face) on a whole head: most of the target lies far from the
+    registered source, but the source lies on the target, and the registration is taken."""
+    source = dome()
+    big = grid_mesh(72, size=3.6)  # three times as wide, the source's cap in its middle
+    u, v = big.vertices[:, 0] - 1.8, big.vertices[:, 1] - 1.8
+    target = Mesh(np.column_stack([u, v, np.sqrt(np.maximum(2.0 - u ** 2 - v ** 2, 0.0)) - 1.0]), big.triangles)
+    ids = np.array([0, 23, 552, 575, 287])
+    points = source.vertices[ids] + [0.01, 0.0, 0.0]
+    reg = register_surface(source, target, source_landmarks=ids, target_points=points)
+    assert reg.fit < 1e-3
+    assert np.median(project_points(Mesh(reg.vertices, source.triangles), target.vertices).distances) > 0.3
+
+
 def test_meshes_too_far_apart_without_landmarks_fail_with_the_residual():
     source = dome()
     target = source.with_vertices(source.vertices + [5.0, 0, 0])

@@ -61,8 +61,10 @@ class NicpOptions:
     max_distance
         Correspondences farther than this are refused.
     fit_tolerance, landmark_tolerance
-        After the last stage: the median of the target's distances to the registered source, and
-        the RMS landmark error (weighted by the landmarks' weights), above which the registration is declared failed.
+        After the last stage: the median distance from the mesh that covers less onto the other (the
+        target's vertices onto the registered source, or the source's onto the target, whichever is
+        nearer: a face-only source on a whole head lies on it), and the RMS landmark error (weighted
+        by the landmarks' weights), above which the registration is declared failed.
     reverse_weight
         Weight of the reverse data term, relative to the forward one: each target vertex pulls the
         closest compatible point of the source surface (the same angle and distance tests, refused
@@ -107,7 +109,8 @@ class Registration:
 
     ``vertices (V, 3)`` the registered source positions (target units and frame), ``matched (V,)``
     which source vertices had an accepted correspondence in the last round, ``fit`` the median of
-    the target vertices' distances to the registered source surface and
+    the target vertices' distances to the registered source surface or of the registered source's
+    vertices' to the target's, the smaller, and
     ``landmark_error`` the RMS distance of the registered source landmarks from their targets, each
     weighted by its landmark weight (both in target units; 0 without landmarks), ``solves`` the number
     of sparse solves.
@@ -232,15 +235,21 @@ def register_surface(source: Mesh, target: Mesh, *, source_landmarks=(), target_
 
     vertices = current * scale + origin
     registered = Mesh(vertices, source.triangles)
-    fit = float(np.median(project_points(registered, target.vertices[np.unique(target.triangles)]).distances))
+    # Measured both ways, the nearer taken: a face-only source (the generic face) registered onto a whole head
+    # lies on it while most of the head (scalp, neck, ears) lies far from the face, and the other way round
+    # for ICT's head onto a face region.
+    target_off = float(np.median(project_points(registered, target.vertices[np.unique(target.triangles)]).distances))
+    source_off = float(np.median(project_points(target, vertices[used]).distances))
+    fit = min(target_off, source_off)
     # Weighted: a landmark given a faint weight is a soft pull the registration need not reach (the eyelids' skin
     # placed by relative height, contours.lid_bands), and unweighted, many of them could fail a good registration.
     landmark_error = float(np.sqrt((lw * ((vertices[ids] - points) ** 2).sum(axis=1)).sum() / lw.sum())) \
         if len(ids) and lw.sum() > 0 else 0.0
     if fit > options.fit_tolerance * scale or landmark_error > options.landmark_tolerance * scale:
         raise InputError(
-            f"the dense registration did not converge: half the target lies farther than {fit:.3g} of the registered "
-            f"source (tolerance {options.fit_tolerance * scale:.3g}) and the landmarks are {landmark_error:.3g} from "
+            f"the dense registration did not converge: half the target lies farther than {target_off:.3g} of the "
+            f"registered source and half the source farther than {source_off:.3g} of the target (tolerance "
+            f"{options.fit_tolerance * scale:.3g}) and the landmarks are {landmark_error:.3g} from "
             f"their places (weighted RMS; tolerance {options.landmark_tolerance * scale:.3g}), in the meshes' units; "
             + ("give corresponding landmarks to start from" if not len(ids) else
                "check that the control pairs mark the same places on both meshes"))
