@@ -82,3 +82,13 @@ def test_nearest_neighbour_on_takes_the_shortest_edge_to_an_allowed_vertex_or_no
     np.testing.assert_array_equal(nearest_neighbour_on(mesh, np.array([0, 3]), on), [2, -1])
     with pytest.raises(ValueError, match="sorted"):
         nearest_neighbour_on(mesh, np.array([3, 0]), on)
+
+
+def test_vertex_adjacency_is_symmetric_ones_on_the_edges():
+    from faceanim.geometry.topology import vertex_adjacency
+
+    adjacency = vertex_adjacency([[0, 1], [1, 2], [3, 1]], 5).toarray()
+    expected = np.zeros((5, 5))
+    for a, b in ((0, 1), (1, 2), (3, 1)):
+        expected[a, b] = expected[b, a] = 1
+    np.testing.assert_array_equal(adjacency, expected)  # vertex 4 has no edge: an empty row

@@ -281,6 +281,14 @@ def test_averaging_only_near_a_tear():
     assert set(changed) == set(np.flatnonzero(rings <= 2))  # the torn edges' ends and one ring more
 
 
+@pytest.mark.parametrize("steps", [-1, 1.5, True, "2"])
+def test_smoothing_steps_must_be_a_whole_number(steps):
+    source = bumpy_sphere()
+    pairs = ControlPairs.checked(np.arange(6), np.arange(6), len(source.vertices), len(source.vertices))
+    with pytest.raises(ValueError, match=r"^smoothing_steps must be a whole number, 0 or more, got "):
+        DenseTransfer(source, source, pairs, smoothing_steps=steps)
+
+
 def test_no_averaging_on_a_coarse_mesh():
     from conftest import grid_mesh
 

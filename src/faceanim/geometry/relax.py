@@ -23,6 +23,7 @@ from scipy.sparse.linalg import splu
 
 from .mesh import Mesh
 from .surface import cotangent_laplacian
+from .topology import vertex_adjacency
 
 __all__ = ["FoldRelaxer"]
 
@@ -79,8 +80,7 @@ class FoldRelaxer:
         self._largest = max(1, int(largest * V))
         e = np.sort(self.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
         e = np.unique(e, axis=0)
-        self._adjacency = sparse.coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
-                                            shape=(V, V)).tocsr()
+        self._adjacency = vertex_adjacency(e, V)
         L, _ = cotangent_laplacian(Mesh(self.rest, self.triangles))
         # A neighbourhood holding a whole island has no edge to fill from: the tiny diagonal term
         # makes the island take the base's motion instead of a singular solve.

@@ -11,7 +11,7 @@ from scipy.sparse.linalg import splu
 from .mesh import Mesh
 
 __all__ = ["component_labels", "boundary_loops", "open_edges", "shared_edges", "submesh", "nearest_neighbour_on",
-           "harmonic_fill"]
+           "harmonic_fill", "vertex_adjacency"]
 
 
 def component_labels(mesh: Mesh) -> np.ndarray:
@@ -127,14 +127,21 @@ def nearest_neighbour_on(mesh: Mesh, vertices: np.ndarray, on: np.ndarray) -> np
     return out
 
 
+def vertex_adjacency(edges, count: int) -> sparse.csr_matrix:
+    """``(count, count)``: 1 where two vertices share one of the undirected ``edges`` (each given once),
+    0 elsewhere and on the diagonal."""
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    rows, cols = np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]]
+    return sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(count, count)).tocsr()
+
+
 def harmonic_fill(triangles: np.ndarray, count: int, inner, rim) -> np.ndarray:
     """``(I, R)``: the values at ``inner`` vertices that are the mean of their neighbours' (the graph
     Laplacian's harmonic fill), given values at the held vertices ``rim``; inner vertices no held vertex
     reaches hold 0."""
     edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
     edges = np.unique(edges, axis=0)
-    A = sparse.coo_matrix((np.ones(2 * len(edges)), (np.r_[edges[:, 0], edges[:, 1]], np.r_[edges[:, 1], edges[:, 0]])),
-                          shape=(count, count)).tocsr()
+    A = vertex_adjacency(edges, count)
     L = sparse.diags(np.asarray(A.sum(axis=1)).ravel()) - A
     L_ii = L[inner][:, inner] + sparse.eye(len(inner)) * 1e-9
     return -splu(L_ii.tocsc()).solve(L[inner][:, rim].toarray())

@@ -37,7 +37,7 @@ from ..geometry.nicp import NicpOptions
 from ..geometry.project import Projection, project_points
 from ..geometry.rbf import RbfWarp, apply_operator
 from ..geometry.surface import BiharmonicInterpolation, SurfaceRbf
-from ..geometry.topology import component_labels, harmonic_fill
+from ..geometry.topology import component_labels, harmonic_fill, vertex_adjacency
 from ..validation import as_array, as_index_array
 from .contours import SIDE_CORNERS, SIDED, opening_sides
 from .correspondence import register_faces
@@ -191,6 +191,9 @@ class DenseTransfer:
                  smoothing_steps: int | None = None):
         if len(pairs.source) < 4:
             raise ValueError(f"the clone method needs at least 4 control pairs, got {len(pairs.source)}")
+        if smoothing_steps is not None and (isinstance(smoothing_steps, bool) or
+                                            not isinstance(smoothing_steps, (int, np.integer)) or smoothing_steps < 0):
+            raise ValueError(f"smoothing_steps must be a whole number, 0 or more, got {smoothing_steps!r}")
         if register:
             reg = register_faces(source, target, pairs.source, pairs.target, contours=contours,
                                  options=NicpOptions() if options is None else options)
@@ -223,8 +226,6 @@ class DenseTransfer:
             weights = _filled_from_neighbours(moving_mesh, weights, self.unreached)
         if smoothing_steps is None:
             smoothing_steps = default_smoothing_steps(moving_mesh, target.vertices[pairs.target])
-        if smoothing_steps < 0:
-            raise ValueError(f"smoothing_steps must be 0 or more, got {smoothing_steps}")
         self.smoothing_steps = int(smoothing_steps)
         weights = _averaged_where_torn(moving_mesh, weights, warped.vertices, self.smoothing_steps,
                                        None if sides is None else sides[1])
@@ -312,10 +313,10 @@ def default_smoothing_steps(mesh: Mesh, control_points) -> int:
 def _averaged_where_torn(mesh: Mesh, weights: sparse.csr_matrix, surface, steps: int, sides) -> sparse.csr_matrix:
     """``weights`` (one row per ``mesh`` vertex, one column per ``surface`` vertex) averaged ``steps`` times
     over each vertex and its neighbours with the same side (``sides``,
-    :func:`~faceanim.retarget.contours.opening_sides`; all alike when None), only within ``steps`` rings
-    of a torn edge (:func:`torn_edges`): rows stay sums of 1, no vertex takes a landing from across a lip or
-    lid, and where the landing is already as smooth as the mesh (a face registered onto itself) nothing
-    changes."""
+    :func:`~faceanim.retarget.contours.opening_sides`; all alike when None), only at the ends of a torn
+    edge (:func:`torn_edges`) and ``steps - 1`` rings around them: rows stay sums of 1, no vertex takes a
+    landing from across a lip or lid, and where the landing is already as smooth as the mesh (a face
+    registered onto itself) nothing changes."""
     if steps == 0:
         return weights
     edges = mesh.edges
@@ -325,8 +326,7 @@ def _averaged_where_torn(mesh: Mesh, weights: sparse.csr_matrix, surface, steps:
     torn = edges[torn_edges(mesh.vertices, np.asarray(weights @ surface), edges)]
     near = np.zeros(V, dtype=bool)
     near[torn.ravel()] = True
-    rows, cols = np.r_[edges[:, 0], edges[:, 1], np.arange(V)], np.r_[edges[:, 1], edges[:, 0], np.arange(V)]
-    adjacency = sparse.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(V, V))
+    adjacency = vertex_adjacency(edges, V) + sparse.eye(V, format="csr")  # each vertex with its neighbours
     for _ in range(steps - 1):
         near = np.asarray(adjacency @ near.astype(np.float64)).ravel() > 0
     mean = sparse.diags(1.0 / np.asarray(adjacency.sum(axis=1)).ravel()) @ adjacency
